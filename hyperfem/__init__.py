@@ -1,0 +1,66 @@
+"""hyperfem: energy-based large-deformation solid mechanics on FEniCSx.
+
+Write a strain-energy density :math:`\\psi(F)` in UFL, point at a gmsh mesh with
+named physical groups, and solve with PETSc SNES:
+
+>>> from mpi4py import MPI
+>>> import hyperfem as hf
+>>> domain = hf.mesh.beam_mesh(h=2.0)
+>>> params = hf.materials.LameParameters.from_youngs(E=1e6, nu=0.3)
+>>> problem = hf.HyperelasticProblem(
+...     domain, lambda F: hf.materials.neo_hookean(F, params),
+...     bcs=[hf.Clamp("clamped")], loads=[hf.DeadTraction("free_end", (0, -5e3, 0))])
+>>> steps = hf.solve_quasistatic(hf.NewtonSolver(problem))
+"""
+
+from mpi4py import MPI  # noqa: F401  (must precede dolfinx / petsc4py)
+
+from hyperfem import errors, kinematics, materials, mesh
+from hyperfem.errors import (
+    ConvergenceError,
+    HyperfemError,
+    MeshError,
+    MeshFileNotFoundError,
+    ParameterError,
+    UnknownGroupError,
+)
+from hyperfem.mesh import Domain, beam_mesh, read_mesh
+from hyperfem.problem import (
+    BodyForce,
+    Clamp,
+    DeadTraction,
+    FollowerPressure,
+    FollowerTraction,
+    HyperelasticProblem,
+    PrescribedDisplacement,
+)
+from hyperfem.solver import LoadStepping, NewtonSolver, SolveRecord, StepRecord, solve_quasistatic
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BodyForce",
+    "Clamp",
+    "ConvergenceError",
+    "DeadTraction",
+    "Domain",
+    "FollowerPressure",
+    "FollowerTraction",
+    "HyperelasticProblem",
+    "HyperfemError",
+    "LoadStepping",
+    "MeshError",
+    "MeshFileNotFoundError",
+    "NewtonSolver",
+    "ParameterError",
+    "SolveRecord",
+    "StepRecord",
+    "UnknownGroupError",
+    "beam_mesh",
+    "errors",
+    "kinematics",
+    "materials",
+    "mesh",
+    "read_mesh",
+    "solve_quasistatic",
+]

@@ -1,0 +1,58 @@
+"""Exceptions raised by hyperfem.
+
+Every error hyperfem raises on bad input or failed solves derives from
+:class:`HyperfemError` and carries a one-line message that says *what* went
+wrong and *where*, so that command-line drivers can print it and exit
+non-zero without a traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ConvergenceError",
+    "HyperfemError",
+    "MeshError",
+    "MeshFileNotFoundError",
+    "ParameterError",
+    "UnknownGroupError",
+]
+
+
+class HyperfemError(Exception):
+    """Base class of all hyperfem errors."""
+
+
+class ParameterError(HyperfemError, ValueError):
+    """Invalid material, load, solver or stepping parameter."""
+
+
+class MeshError(HyperfemError):
+    """A mesh could not be read, generated or interpreted."""
+
+
+class MeshFileNotFoundError(MeshError, FileNotFoundError):
+    """The mesh file does not exist."""
+
+
+class UnknownGroupError(MeshError, LookupError):
+    """A physical-group name is not defined on the mesh.
+
+    The message lists the names that do exist for that entity dimension.
+    """
+
+    def __str__(self) -> str:  # LookupError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class ConvergenceError(HyperfemError, RuntimeError):
+    """A nonlinear solve failed after all cutbacks.
+
+    Attributes:
+        load_factor: The last load factor (or time) that converged.
+        history: Records of the steps that did converge.
+    """
+
+    def __init__(self, message: str, load_factor: float = 0.0, history: list | None = None):
+        super().__init__(message)
+        self.load_factor = load_factor
+        self.history = [] if history is None else history

@@ -1,0 +1,7 @@
+"""Meshes: reading gmsh files, named groups, and geometry generators."""
+
+from hyperfem.mesh.beam import BEAM_GROUPS, beam_mesh, write_beam_mesh
+from hyperfem.mesh.domain import Domain
+from hyperfem.mesh.io import read_mesh
+
+__all__ = ["BEAM_GROUPS", "Domain", "beam_mesh", "read_mesh", "write_beam_mesh"]

@@ -1,0 +1,170 @@
+r"""The quasi-static hyperelastic boundary-value problem.
+
+Given strain-energy densities :math:`\psi_r(F)` per region, dead loads and
+follower loads, :class:`HyperelasticProblem` builds (once)
+
+.. math::
+    \Pi(u) = \sum_r \int_{\Omega_r} \psi_r(F)\,dX - W_\text{dead}(u),\qquad
+    R(u; v) = \frac{\partial \Pi}{\partial u}[v] + R_\text{follower}(u; v),\qquad
+    K(u; v, \delta u) = \frac{\partial R}{\partial u}[\delta u],
+
+with both derivatives taken by ``ufl.derivative``. Loads are
+:class:`dolfinx.fem.Constant` magnitudes set by :meth:`set_load_factor`; the
+forms never need recompiling.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from hyperfem.errors import ParameterError
+from hyperfem.kinematics import deformation_gradient
+from hyperfem.mesh.domain import Domain
+from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
+from hyperfem.problem.loads import BodyForce, DeadTraction, FollowerPressure, FollowerTraction, Load
+
+__all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
+
+EnergyDensity = Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]
+
+
+def default_quadrature_degree(degree: int) -> int:
+    """Quadrature degree used for displacement degree ``degree``.
+
+    P1: one point (F is constant per cell); P2 and higher: ``2 * degree``.
+    """
+    return 1 if degree == 1 else 2 * degree
+
+
+def _vector(value, x, gdim: int, what: str):
+    if callable(value):
+        return value(x)
+    vals = [float(v) for v in value]
+    if len(vals) != gdim:
+        raise ParameterError(f"{what}: expected {gdim} components, got {len(vals)}")
+    return ufl.as_vector(vals)
+
+
+class HyperelasticProblem:
+    """Energy, residual and tangent of a hyperelastic body.
+
+    Args:
+        domain: Mesh with named groups.
+        material: Strain-energy density ``psi(F)``, or a mapping region name →
+            ``psi(F)`` for several materials (every cell must belong to one).
+        bcs: Dirichlet conditions (:class:`~hyperfem.problem.Clamp`,
+            :class:`~hyperfem.problem.PrescribedDisplacement`).
+        loads: External loads (dead and follower).
+        degree: Lagrange degree of the displacement.
+        quadrature_degree: Quadrature degree; default from
+            :func:`default_quadrature_degree`.
+
+    Attributes:
+        u: The displacement :class:`dolfinx.fem.Function`.
+        energy_internal, energy_external: UFL forms of the stored energy and
+            the work of the dead loads (``Pi = internal - external``).
+        residual, jacobian: UFL forms passed to the solver.
+        conservative: ``True`` when every load derives from :math:`\\Pi`, so the
+            line search can use the energy as its merit function.
+    """
+
+    def __init__(
+        self,
+        domain: Domain,
+        material: EnergyDensity | Mapping[str, EnergyDensity],
+        *,
+        bcs: Sequence[BoundaryCondition] = (),
+        loads: Sequence[Load] = (),
+        degree: int = 1,
+        quadrature_degree: int | None = None,
+    ):
+        if degree < 1:
+            raise ParameterError(f"HyperelasticProblem: degree must be >= 1, got {degree}")
+        self.domain = domain
+        mesh = domain.mesh
+        gdim = domain.gdim
+        self.degree = degree
+        self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree)
+        md = {"quadrature_degree": self.quadrature_degree}
+        self.V = fem.functionspace(mesh, ("Lagrange", degree, (gdim,)))
+        self.u = fem.Function(self.V, name="displacement")
+        v = ufl.TestFunction(self.V)
+        du = ufl.TrialFunction(self.V)
+        self.F = deformation_gradient(self.u)
+        X = ufl.SpatialCoordinate(mesh)
+
+        # Stored energy, per region.
+        if callable(material):
+            self.energy_internal = material(self.F) * domain.dx(metadata=md)
+        else:
+            if not material:
+                raise ParameterError("HyperelasticProblem: material mapping is empty")
+            self.energy_internal = sum(
+                psi(self.F) * domain.dx(name, metadata=md) for name, psi in material.items()
+            )
+        self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
+
+        # Loads: one Constant magnitude each, scaled by its profile.
+        self._load_scales: list[tuple[fem.Constant, Load]] = []
+        external = []
+        follower = []
+        for load in loads:
+            c = fem.Constant(mesh, 0.0)
+            self._load_scales.append((c, load))
+            if isinstance(load, DeadTraction):
+                t = _vector(load.value, X, gdim, f"DeadTraction on {load.boundary!r}")
+                external.append(c * ufl.dot(t, self.u) * domain.ds(load.boundary, metadata=md))
+            elif isinstance(load, BodyForce):
+                b = _vector(load.value, X, gdim, "BodyForce")
+                external.append(c * ufl.dot(b, self.u) * domain.dx(load.region, metadata=md))
+            elif isinstance(load, FollowerTraction):
+                t = _vector(load.value, X + self.u, gdim, f"FollowerTraction on {load.boundary!r}")
+                follower.append(-c * ufl.dot(t, v) * domain.ds(load.boundary, metadata=md))
+            elif isinstance(load, FollowerPressure):
+                N = ufl.FacetNormal(mesh)
+                J = ufl.det(self.F)
+                p = float(load.value)
+                follower.append(
+                    c * p * J * ufl.dot(ufl.inv(self.F).T * N, v) * domain.ds(load.boundary, metadata=md)
+                )
+            else:
+                raise ParameterError(f"HyperelasticProblem: unknown load type {type(load).__name__}")
+        zero = fem.Constant(mesh, 0.0) * ufl.dot(self.u, self.u) * domain.dx(metadata=md)
+        self.energy_external = sum(external) if external else zero
+        self.conservative = not follower
+        self.energy = self.energy_internal - self.energy_external
+        self.residual = ufl.derivative(self.energy, self.u, v)
+        for term in follower:
+            self.residual = self.residual + term
+        self.jacobian = ufl.derivative(self.residual, self.u, du)
+        self.load_factor = 0.0
+        self.set_load_factor(0.0)
+
+    @property
+    def bcs(self) -> list[fem.DirichletBC]:
+        """The DOLFINx Dirichlet conditions (values follow :meth:`set_load_factor`)."""
+        return [d for c in self._dirichlet for d in c.dirichlet]
+
+    def set_load_factor(self, s: float) -> None:
+        """Set every load magnitude and prescribed displacement for factor/time ``s``."""
+        self.load_factor = float(s)
+        for c, load in self._load_scales:
+            c.value = float(load.profile(s))
+        for d in self._dirichlet:
+            d.update(s)
+
+    def volume_jacobian(self) -> ufl.core.expr.Expr:
+        """:math:`J = \\det F` as a UFL expression (for inversion checks and output)."""
+        return ufl.det(self.F)
+
+    def quadrature_points(self) -> np.ndarray:
+        """Reference quadrature points of the volume rule (for :class:`dolfinx.fem.Expression`)."""
+        import basix
+
+        cell = self.domain.mesh.basix_cell()
+        pts, _ = basix.make_quadrature(cell, self.quadrature_degree)
+        return pts
