@@ -67,6 +67,7 @@ class HyperelasticProblem:
         u: The displacement :class:`dolfinx.fem.Function`.
         energy_internal, energy_external: UFL forms of the stored energy and
             the work of the dead loads (``Pi = internal - external``).
+        follower_residual: Sum of the non-conservative residual terms, or ``None``.
         residual, jacobian: UFL forms passed to the solver.
         conservative: ``True`` when every load derives from :math:`\\Pi`, so the
             line search can use the energy as its merit function.
@@ -136,10 +137,11 @@ class HyperelasticProblem:
         zero = fem.Constant(mesh, 0.0) * ufl.dot(self.u, self.u) * domain.dx(metadata=md)
         self.energy_external = sum(external) if external else zero
         self.conservative = not follower
+        self.follower_residual = sum(follower) if follower else None
         self.energy = self.energy_internal - self.energy_external
         self.residual = ufl.derivative(self.energy, self.u, v)
-        for term in follower:
-            self.residual = self.residual + term
+        if self.follower_residual is not None:
+            self.residual = self.residual + self.follower_residual
         self.jacobian = ufl.derivative(self.residual, self.u, du)
         self.load_factor = 0.0
         self.set_load_factor(0.0)

@@ -17,6 +17,14 @@ What this adds to the DOLFINx class:
 * a line-search pre-check that shortens the Newton step until no quadrature
   point has :math:`J \le J_\text{min}` — steps that would invert elements are refused;
 * a :class:`SolveRecord` per solve (reason, iterations, residual history).
+
+The solver works with any *problem* object that provides (as
+:class:`~hyperfem.problem.HyperelasticProblem` does): ``domain``, ``u`` (the
+unknown :class:`~dolfinx.fem.Function`, possibly on a mixed space),
+``residual`` and ``jacobian`` (UFL forms), ``bcs``, ``energy_internal`` and
+``energy_external`` (UFL scalar forms, :math:`\Pi` = internal − external),
+``conservative`` (bool), ``load_factor``, ``volume_jacobian()`` (UFL
+expression of :math:`J`) and ``quadrature_points()``.
 """
 
 from __future__ import annotations
