@@ -1,0 +1,61 @@
+"""Point evaluation of finite-element functions in parallel.
+
+Each point is evaluated on the rank that owns a cell containing it; the values
+are summed over ranks so every rank gets the result.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem, geometry
+from mpi4py import MPI
+
+from hyperfem.errors import ParameterError
+
+__all__ = ["PointProbe"]
+
+
+class PointProbe:
+    """Evaluate functions at fixed reference points (cells located once).
+
+    Args:
+        mesh: The mesh.
+        points: Array of shape ``(n, 3)`` (or ``(3,)``) in reference coordinates.
+
+    Raises:
+        ParameterError: If a point lies outside the mesh.
+    """
+
+    def __init__(self, mesh, points):
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        if pts.shape[1] < 3:
+            pts = np.hstack([pts, np.zeros((pts.shape[0], 3 - pts.shape[1]))])
+        self.points = pts
+        self.mesh = mesh
+        tdim = mesh.topology.dim
+        tree = geometry.bb_tree(mesh, tdim)
+        candidates = geometry.compute_collisions_points(tree, pts)
+        colliding = geometry.compute_colliding_cells(mesh, candidates, pts)
+        size_local = mesh.topology.index_map(tdim).size_local
+        owner = np.full(len(pts), -1, dtype=np.int32)
+        for i in range(len(pts)):
+            cells = colliding.links(i)
+            owned = cells[cells < size_local]
+            if len(owned):
+                owner[i] = owned[0]
+        found = np.where(owner >= 0, mesh.comm.rank, mesh.comm.size)
+        # One rank (the lowest that found it) evaluates each point.
+        self._rank = mesh.comm.allreduce(found, op=MPI.MIN)
+        missing = np.where(self._rank == mesh.comm.size)[0]
+        if len(missing):
+            raise ParameterError(f"PointProbe: point {pts[missing[0]].tolist()} is outside the mesh")
+        self._mine = np.where(self._rank == mesh.comm.rank)[0]
+        self._cells = owner[self._mine]
+
+    def __call__(self, u: fem.Function) -> np.ndarray:
+        """Values of ``u`` at the points, shape ``(n, value_size)``, on every rank."""
+        size = int(np.prod(u.function_space.value_shape)) if u.function_space.value_shape else 1
+        values = np.zeros((len(self.points), size))
+        if len(self._mine):
+            values[self._mine] = u.eval(self.points[self._mine], self._cells).reshape(len(self._mine), size)
+        return self.mesh.comm.allreduce(values, op=MPI.SUM)
