@@ -17,8 +17,9 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from hyperfem.errors import MeshError, ParameterError
+from hyperfem.errors import ParameterError
 from hyperfem.mesh.domain import Domain
+from hyperfem.mesh.gmsh_session import gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
 
 __all__ = ["BEAM_GROUPS", "beam_mesh", "write_beam_mesh"]
@@ -60,23 +61,6 @@ def _build_beam_model(gmsh, h: float, order: int) -> None:
     gmsh.model.mesh.setOrder(order)
 
 
-def _with_gmsh(func):
-    try:
-        import gmsh
-    except ImportError as exc:  # pragma: no cover - depends on the installation
-        raise MeshError("the gmsh Python module is required to generate meshes") from exc
-    initialized = gmsh.isInitialized()
-    if not initialized:
-        gmsh.initialize(interruptible=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        return func(gmsh)
-    finally:
-        gmsh.clear()
-        if not initialized:
-            gmsh.finalize()
-
-
 def beam_mesh(h: float = 1.0, order: int = 1, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
     """Generate the cantilever beam in memory and distribute it.
 
@@ -92,9 +76,9 @@ def beam_mesh(h: float = 1.0, order: int = 1, comm: MPI.Comm = MPI.COMM_WORLD) -
 
     _check(h, order)  # on every rank, before any collective call
     if comm.rank == 0:
-        data = _with_gmsh(
-            lambda gmsh: (_build_beam_model(gmsh, h, order), dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3))[1]
-        )
+        with gmsh_session() as gmsh:
+            _build_beam_model(gmsh, h, order)
+            data = dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     else:
         data = dgmsh.model_to_mesh(None, comm, 0, gdim=3)
     return domain_from_meshdata(data, f"beam_mesh(h={h}, order={order})")
@@ -115,12 +99,9 @@ def write_beam_mesh(path: str | Path, h: float = 1.0, order: int = 1) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
 
     _check(h, order)
-
-    def build(gmsh):
+    with gmsh_session() as gmsh:
         _build_beam_model(gmsh, h, order)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.option.setNumber("Mesh.Binary", 0)
         gmsh.write(str(path))
-
-    _with_gmsh(build)
     return path
