@@ -1,0 +1,45 @@
+"""Dynamics: time integrators as incremental potentials, damping, mass, time stepping, diagnostics.
+
+>>> from mpi4py import MPI
+>>> import hyperfem as hf
+>>> from hyperfem import dynamics as dyn
+>>> domain = hf.beam_mesh(h=2.0)
+>>> params = hf.materials.LameParameters.from_youngs(E=1e6, nu=0.3)
+>>> base = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params),
+...     bcs=[hf.Clamp("clamped")],
+...     loads=[hf.DeadTraction("free_end", (0, -5e3, 0), profile=dyn.Steady())])
+>>> problem = dyn.IncrementalProblem(base, dyn.Newmark(), dyn.MassDensity(1000.0))
+>>> history = dyn.integrate(problem, hf.NewtonSolver(problem), dyn.TimeStepping(dt=0.05, t_end=0.1))
+"""
+
+from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form, viscous_damping
+from hyperfem.dynamics.diagnostics import Diagnostics, PointProbe
+from hyperfem.dynamics.incremental import DynamicState, IncrementalProblem
+from hyperfem.dynamics.integrators import BackwardEuler, GeneralizedAlpha, Newmark, QuasiStatic, TimeIntegrator
+from hyperfem.dynamics.mass import MassDensity
+from hyperfem.dynamics.motion import Ramp, RigidRotation, Steady, rotating_surface, rotation_matrix
+from hyperfem.dynamics.stepping import TimeStepping, TimeStepRecord, integrate
+
+__all__ = [
+    "BackwardEuler",
+    "Diagnostics",
+    "DynamicState",
+    "GeneralizedAlpha",
+    "IncrementalProblem",
+    "MassDensity",
+    "Newmark",
+    "PointProbe",
+    "QuasiStatic",
+    "Ramp",
+    "RayleighDamping",
+    "RigidRotation",
+    "Steady",
+    "TimeIntegrator",
+    "TimeStepRecord",
+    "TimeStepping",
+    "integrate",
+    "reference_stiffness_form",
+    "rotating_surface",
+    "rotation_matrix",
+    "viscous_damping",
+]

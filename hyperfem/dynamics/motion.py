@@ -1,0 +1,131 @@
+r"""Time profiles and prescribed rigid motions.
+
+Loads and :class:`~hyperfem.problem.PrescribedDisplacement` values are scaled
+by ``profile(s)``; in a dynamic run ``s`` is the time :math:`t`. This module
+provides the profiles used by the seed experiments and a rigid rotation of a
+named surface:
+
+.. math::
+    u(X, t) = R\bigl(\theta(t)\,\hat a\bigr)(X - c) + c - X,
+
+with :math:`R` the rotation by angle :math:`\theta(t)` about the unit axis
+:math:`\hat a` through the point :math:`c` (Rodrigues' formula,
+:math:`R = I + \sin\theta\,[\hat a]_\times + (1-\cos\theta)[\hat a]_\times^2`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hyperfem.errors import ParameterError
+from hyperfem.problem.boundary_conditions import PrescribedDisplacement
+
+__all__ = ["Steady", "Ramp", "RigidRotation", "rotation_matrix", "rotating_surface"]
+
+
+@dataclass(frozen=True)
+class Steady:
+    """The profile :math:`f(t) = c` (a load that is on from :math:`t = 0`)."""
+
+    value: float = 1.0
+
+    def __call__(self, t: float) -> float:
+        return float(self.value)
+
+
+@dataclass(frozen=True)
+class Ramp:
+    r"""Linear ramp held at its end value.
+
+    .. math::
+        f(t) = f_0 + (f_1 - f_0)\,\min\bigl(\max((t - t_0)/(t_1 - t_0), 0), 1\bigr).
+
+    Attributes:
+        t1: Time at which the ramp ends (a natural must-hit time).
+        final: Value from ``t1`` on.
+        initial: Value up to ``t0``.
+        t0: Time at which the ramp starts.
+    """
+
+    t1: float
+    final: float = 1.0
+    initial: float = 0.0
+    t0: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.t1 > self.t0:
+            raise ParameterError(f"Ramp: need t1 > t0, got t0={self.t0!r}, t1={self.t1!r}")
+
+    def __call__(self, t: float) -> float:
+        xi = min(max((float(t) - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
+        return self.initial + (self.final - self.initial) * xi
+
+    @property
+    def kinks(self) -> tuple[float, float]:
+        """Times where the profile is not smooth (``t0``, ``t1``)."""
+        return (self.t0, self.t1)
+
+
+def rotation_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
+    r"""Rotation by ``angle`` (radians, right-handed) about ``axis`` (Rodrigues)."""
+    a = np.asarray(axis, dtype=float)
+    n = np.linalg.norm(a)
+    if a.shape != (3,) or n == 0:
+        raise ParameterError(f"rotation_matrix: axis must be a non-zero 3-vector, got {axis!r}")
+    a = a / n
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+@dataclass(frozen=True)
+class RigidRotation:
+    r"""Displacement of a rigid rotation, :math:`u = R(\theta(t))(X - c) + c - X`.
+
+    An instance is a callable ``value(x, t)`` as accepted by
+    :class:`~hyperfem.problem.PrescribedDisplacement`: it is re-evaluated at
+    every time. ``x`` has shape ``(3, npoints)`` (reference coordinates).
+
+    Attributes:
+        axis: Rotation axis (normalised internally).
+        angle: :math:`\theta(t)` in radians.
+        center: A point on the axis.
+    """
+
+    axis: Sequence[float]
+    angle: Callable[[float], float]
+    center: Sequence[float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        rotation_matrix(self.axis, 0.0)  # validates the axis
+        if len(self.center) != 3:
+            raise ParameterError(f"RigidRotation: center must have 3 coordinates, got {self.center!r}")
+
+    def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
+        R = rotation_matrix(self.axis, float(self.angle(t)))
+        c = np.asarray(self.center, dtype=float).reshape(3, 1)
+        X = x[:3]
+        return R @ (X - c) + c - X
+
+
+def rotating_surface(
+    boundary: str,
+    axis: Sequence[float],
+    angle: Callable[[float], float],
+    center: Sequence[float] = (0.0, 0.0, 0.0),
+) -> PrescribedDisplacement:
+    """Prescribe a rigid rotation of the named surface about ``axis`` through ``center``.
+
+    Args:
+        boundary: Physical-group name of the surface.
+        axis: Rotation axis.
+        angle: Angle :math:`\\theta(t)` (radians) as a function of time.
+        center: A point on the axis.
+
+    Returns:
+        A :class:`~hyperfem.problem.PrescribedDisplacement` on all components.
+    """
+    return PrescribedDisplacement(boundary, RigidRotation(tuple(axis), angle, tuple(center)))
