@@ -1,0 +1,120 @@
+r"""Muscle activation :math:`\alpha \in [0, 1]` per region ("contractile units").
+
+An :class:`Activation` is a UFL scalar
+
+.. math::
+    \alpha(X, t) = g(t)\, a(X),
+
+where :math:`g` is a constant or a schedule :math:`g(t)` held in a
+:class:`dolfinx.fem.Constant` (updated by :meth:`Activation.update` with the
+load factor or time :math:`t`), and :math:`a` is 1 or a spatial field. Values
+outside :math:`[0, 1]` raise :class:`~hyperfem.errors.ParameterError`.
+:class:`ActivatedProblem` couples activations to a problem's load factor.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+
+from mpi4py import MPI
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from hyperfem.errors import ParameterError
+
+__all__ = ["ActivatedProblem", "Activation"]
+
+
+def _check_range(value: float, what: str) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+        raise ParameterError(f"{what}: activation must lie in [0, 1], got {value!r}")
+    return value
+
+
+class Activation:
+    """Activation of one region.
+
+    Args:
+        mesh: The DOLFINx mesh.
+        value: A number in [0, 1], or a schedule ``value(t) -> float`` of the
+            load factor/time (evaluated at ``t = 0`` initially).
+        field: Optional spatial factor: a scalar :class:`dolfinx.fem.Function`
+            or a callable ``field(x) -> array`` interpolated into DG0; its
+            values must lie in [0, 1].
+        name: Label used in error messages.
+
+    Attributes:
+        expr: The UFL expression :math:`\\alpha` to pass to the energy.
+    """
+
+    def __init__(
+        self,
+        mesh,
+        value: float | Callable[[float], float] = 0.0,
+        field: fem.Function | Callable[[np.ndarray], np.ndarray] | None = None,
+        name: str = "activation",
+    ):
+        self.name = name
+        self._schedule = value if callable(value) else None
+        initial = value(0.0) if callable(value) else value
+        self.scale = fem.Constant(mesh, _check_range(initial, name))
+        self.field: fem.Function | None = None
+        if field is not None:
+            if isinstance(field, fem.Function):
+                self.field = field
+            else:
+                V = fem.functionspace(mesh, ("DG", 0))
+                self.field = fem.Function(V, name=name)
+                self.field.interpolate(lambda x: np.asarray(field(x), dtype=float))
+            arr = self.field.x.array
+            local = (float(arr.min()), float(-arr.max())) if arr.size else (np.inf, np.inf)
+            lo, neg_hi = (mesh.comm.allreduce(v, op=MPI.MIN) for v in local)
+            if not (lo >= 0.0 and -neg_hi <= 1.0):
+                raise ParameterError(f"{name}: activation field must lie in [0, 1], got [{lo:g}, {-neg_hi:g}]")
+        self.expr: ufl.core.expr.Expr = self.scale if self.field is None else self.scale * self.field
+
+    @property
+    def value(self) -> float:
+        """Current value of the time factor :math:`g(t)`."""
+        return float(self.scale.value)
+
+    def set(self, value: float) -> None:
+        """Set the time factor to a number in [0, 1]."""
+        self.scale.value = _check_range(value, self.name)
+
+    def update(self, t: float) -> None:
+        """Evaluate the schedule at load factor/time ``t`` (no-op for a constant)."""
+        if self._schedule is not None:
+            self.set(self._schedule(t))
+
+
+class ActivatedProblem:
+    """A problem whose activations follow its load factor.
+
+    Wraps any problem of the solver protocol (e.g.
+    :class:`~hyperfem.problem.HyperelasticProblem`); every attribute is
+    forwarded, and :meth:`set_load_factor` also calls ``update(s)`` on each
+    activation.
+
+    Args:
+        problem: The wrapped problem.
+        activations: Objects with an ``update(s)`` method.
+    """
+
+    def __init__(self, problem, activations: Iterable[Activation]):
+        self._problem = problem
+        self.activations = list(activations)
+        self.set_load_factor(problem.load_factor)
+
+    def __getattr__(self, name: str):
+        return getattr(self._problem, name)
+
+    def set_load_factor(self, s: float) -> None:
+        """Set loads, prescribed displacements and activations for factor/time ``s``."""
+        self._problem.set_load_factor(s)
+        for a in self.activations:
+            a.update(s)

@@ -1,0 +1,82 @@
+r"""Rule-based fibres from a Laplace problem between two named surfaces.
+
+Solve
+
+.. math::
+    -\Delta\phi = 0 \ \text{in}\ \Omega,\qquad \phi = 0 \ \text{on}\ \Gamma_\text{source},\qquad
+    \phi = 1 \ \text{on}\ \Gamma_\text{target},\qquad \nabla\phi\cdot N = 0 \ \text{elsewhere},
+
+and take :math:`a_0 = \nabla\phi / |\nabla\phi|`: fibres run from the source
+surface (e.g. a muscle's ``origin``) to the target (``insertion``) and follow
+the shape in between, as rule-based fibre methods do.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from hyperfem.fibres.fields import fibres_from_expression
+from hyperfem.mesh.domain import Domain
+
+__all__ = ["laplace_fibres", "laplace_potential"]
+
+_counter = itertools.count()
+
+
+def laplace_potential(domain: Domain, source: str, target: str, degree: int = 2) -> fem.Function:
+    r"""The potential :math:`\phi` with :math:`\phi = 0` on ``source`` and 1 on ``target``.
+
+    Args:
+        domain: Mesh with named boundaries.
+        source: Boundary name where :math:`\phi = 0`.
+        target: Boundary name where :math:`\phi = 1`.
+        degree: Lagrange degree of :math:`\phi`.
+    """
+    from dolfinx.fem.petsc import LinearProblem
+
+    mesh = domain.mesh
+    fdim = domain.tdim - 1
+    V = fem.functionspace(mesh, ("Lagrange", degree))
+    bcs = []
+    for name, value in ((source, 0.0), (target, 1.0)):
+        dofs = fem.locate_dofs_topological(V, fdim, domain.facets(name))
+        bcs.append(fem.dirichletbc(value, dofs, V))
+    phi, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    zero = fem.Constant(mesh, 0.0)
+    solution = fem.Function(V, name="laplace_potential")
+    LinearProblem(
+        ufl.inner(ufl.grad(phi), ufl.grad(v)) * ufl.dx,
+        zero * v * ufl.dx,
+        u=solution,
+        bcs=bcs,
+        petsc_options_prefix=f"hyperfem_laplace_{next(_counter)}_",
+        petsc_options={"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"},
+    ).solve()
+    solution.x.scatter_forward()
+    return solution
+
+
+def laplace_fibres(
+    domain: Domain,
+    source: str,
+    target: str,
+    representation: str = "DG0",
+    quadrature_degree: int = 1,
+    degree: int = 2,
+) -> fem.Function:
+    """Unit fibres :math:`\\nabla\\phi/|\\nabla\\phi|` of :func:`laplace_potential`.
+
+    Args:
+        domain: Mesh with named boundaries.
+        source, target: Boundary names (fibres point from source to target).
+        representation: ``"P1"``, ``"DG0"`` or ``"quadrature"``.
+        quadrature_degree: For the quadrature representation.
+        degree: Lagrange degree of the potential.
+    """
+    phi = laplace_potential(domain, source, target, degree)
+    assert np.isfinite(phi.x.array).all()
+    return fibres_from_expression(domain.mesh, ufl.grad(phi), representation, quadrature_degree)

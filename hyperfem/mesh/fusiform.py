@@ -1,0 +1,200 @@
+r"""gmsh generator for a fusiform (spindle) muscle with a tendon at each end.
+
+The muscle belly is a body of revolution about the :math:`z` axis,
+:math:`z \in [-L/2, L/2]`, with radius
+
+.. math::
+    r(z) = r_t + (R - r_t)\cos^2\!\left(\frac{\pi z}{L}\right),
+
+lofted through circles; each end carries a cylindrical tendon of radius
+:math:`r_t` and length :math:`L_t`. Physical groups:
+
+* volumes ``muscle``, ``tendon_proximal`` (:math:`z < 0`), ``tendon_distal``;
+* surfaces ``origin`` (:math:`z = -L/2 - L_t`), ``insertion``
+  (:math:`z = L/2 + L_t`) and ``lateral`` (all other outer faces).
+
+gmsh runs on rank 0 only; the mesh is distributed by DOLFINx.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from mpi4py import MPI
+
+from hyperfem.errors import MeshError, ParameterError
+from hyperfem.mesh.domain import Domain
+from hyperfem.mesh.io import domain_from_meshdata
+
+__all__ = ["FUSIFORM_GROUPS", "FusiformGeometry", "fusiform_mesh", "write_fusiform_mesh"]
+
+FUSIFORM_GROUPS = {
+    "muscle": 1,
+    "tendon_proximal": 2,
+    "tendon_distal": 3,
+    "origin": 1,
+    "insertion": 2,
+    "lateral": 3,
+}
+
+
+@dataclass(frozen=True)
+class FusiformGeometry:
+    """Dimensions of the spindle (metres).
+
+    Attributes:
+        belly_length: Length :math:`L` of the muscle belly.
+        belly_radius: Largest radius :math:`R` (at :math:`z = 0`).
+        tendon_radius: Tendon radius :math:`r_t < R`.
+        tendon_length: Length :math:`L_t` of each tendon.
+        sections: Number of lofted cross-sections of the belly.
+    """
+
+    belly_length: float = 0.06
+    belly_radius: float = 0.012
+    tendon_radius: float = 0.004
+    tendon_length: float = 0.015
+    sections: int = 9
+
+    def __post_init__(self) -> None:
+        for name in ("belly_length", "belly_radius", "tendon_radius", "tendon_length"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ParameterError(f"FusiformGeometry: {name} must be > 0, got {value!r}")
+        if self.tendon_radius >= self.belly_radius:
+            raise ParameterError(
+                f"FusiformGeometry: tendon_radius {self.tendon_radius} must be below belly_radius {self.belly_radius}"
+            )
+        if self.sections < 3 or self.sections % 2 == 0:
+            raise ParameterError(f"FusiformGeometry: sections must be odd and >= 3, got {self.sections}")
+
+    def radius(self, z: float) -> float:
+        """Belly radius :math:`r(z)`."""
+        return self.tendon_radius + (self.belly_radius - self.tendon_radius) * math.cos(math.pi * z / self.belly_length) ** 2
+
+    @property
+    def total_length(self) -> float:
+        """Origin-to-insertion length :math:`L + 2L_t`."""
+        return self.belly_length + 2 * self.tendon_length
+
+
+def _build(gmsh, geo: FusiformGeometry, h: float, order: int) -> None:
+    occ = gmsh.model.occ
+    gmsh.model.add("fusiform")
+    half = geo.belly_length / 2
+    wires = []
+    for k in range(geo.sections):
+        z = -half + k * geo.belly_length / (geo.sections - 1)
+        c = occ.addCircle(0, 0, z, geo.radius(z))
+        wires.append(occ.addCurveLoop([c]))
+    belly = occ.addThruSections(wires, makeSolid=True, makeRuled=False)
+    prox = occ.addCylinder(0, 0, -half - geo.tendon_length, 0, 0, geo.tendon_length, geo.tendon_radius)
+    dist = occ.addCylinder(0, 0, half, 0, 0, geo.tendon_length, geo.tendon_radius)
+    occ.fragment([(3, belly[0][1])], [(3, prox), (3, dist)])
+    occ.synchronize()
+
+    vols = {"muscle": [], "tendon_proximal": [], "tendon_distal": []}
+    for _, tag in gmsh.model.getEntities(3):
+        z = occ.getCenterOfMass(3, tag)[2]
+        key = "muscle" if abs(z) < half else ("tendon_proximal" if z < 0 else "tendon_distal")
+        vols[key].append(tag)
+    if any(len(v) != 1 for v in vols.values()):
+        raise MeshError(f"fusiform mesh: unexpected volumes {vols}")
+    z0, z1 = -half - geo.tendon_length, half + geo.tendon_length
+    surfs = {"origin": [], "insertion": [], "lateral": []}
+    boundary = gmsh.model.getBoundary([(3, v[0]) for v in vols.values()], combined=True, oriented=False)
+    for _, tag in boundary:
+        z = occ.getCenterOfMass(2, abs(tag))[2]
+        xmin, ymin, zmin, xmax, ymax, zmax = occ.getBoundingBox(2, abs(tag))
+        if abs(zmax - zmin) < 1e-4 * geo.total_length and abs(z - z0) < 1e-6 * geo.total_length:
+            surfs["origin"].append(abs(tag))
+        elif abs(zmax - zmin) < 1e-4 * geo.total_length and abs(z - z1) < 1e-6 * geo.total_length:
+            surfs["insertion"].append(abs(tag))
+        else:
+            surfs["lateral"].append(abs(tag))
+    for name, tags in vols.items():
+        gmsh.model.addPhysicalGroup(3, tags, FUSIFORM_GROUPS[name], name=name)
+    for name, tags in surfs.items():
+        if not tags:
+            raise MeshError(f"fusiform mesh: no surface found for {name!r}")
+        gmsh.model.addPhysicalGroup(2, tags, FUSIFORM_GROUPS[name], name=name)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", h)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay: deterministic
+    gmsh.option.setNumber("General.NumThreads", 1)
+    gmsh.model.mesh.generate(3)
+    gmsh.model.mesh.setOrder(order)
+
+
+def _with_gmsh(func):
+    try:
+        import gmsh
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        raise MeshError("the gmsh Python module is required to generate meshes") from exc
+    initialized = gmsh.isInitialized()
+    if not initialized:
+        gmsh.initialize(interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        return func(gmsh)
+    finally:
+        gmsh.clear()
+        if not initialized:
+            gmsh.finalize()
+
+
+def _check(h: float, order: int) -> None:
+    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+        raise ParameterError(f"fusiform mesh: element size h must be > 0, got {h!r}")
+    if order not in (1, 2):
+        raise ParameterError(f"fusiform mesh: order must be 1 or 2, got {order!r}")
+
+
+def fusiform_mesh(
+    h: float = 0.004,
+    geometry: FusiformGeometry = FusiformGeometry(),
+    order: int = 1,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> Domain:
+    """Generate the fusiform muscle in memory (gmsh on rank 0) and distribute it.
+
+    Args:
+        h: Target element size (metres).
+        geometry: Dimensions.
+        order: Geometric order of the tetrahedra (1 or 2).
+        comm: Communicator.
+
+    Returns:
+        The distributed :class:`~hyperfem.mesh.Domain`.
+    """
+    from dolfinx.io import gmsh as dgmsh
+
+    _check(h, order)
+    if comm.rank == 0:
+        data = _with_gmsh(
+            lambda gmsh: (_build(gmsh, geometry, h, order), dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3))[1]
+        )
+    else:
+        data = dgmsh.model_to_mesh(None, comm, 0, gdim=3)
+    return domain_from_meshdata(data, f"fusiform_mesh(h={h}, order={order})")
+
+
+def write_fusiform_mesh(
+    path: str | Path, h: float = 0.004, geometry: FusiformGeometry = FusiformGeometry(), order: int = 1
+) -> Path:
+    """Write the fusiform mesh to a gmsh ``.msh`` (4.1, ASCII) file. Serial; call on one rank."""
+    path = Path(path)
+    _check(h, order)
+    path.parent.mkdir(parents=True, exist_ok=True)
+
+    def build(gmsh):
+        _build(gmsh, geometry, h, order)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.write(str(path))
+
+    _with_gmsh(build)
+    return path
