@@ -12,6 +12,7 @@
 >>> history = dyn.integrate(problem, hf.NewtonSolver(problem), dyn.TimeStepping(dt=0.05, t_end=0.1))
 """
 
+from hyperfem.dynamics import cantilever
 from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form, viscous_damping
 from hyperfem.dynamics.diagnostics import Diagnostics, PointProbe
 from hyperfem.dynamics.incremental import DynamicState, IncrementalProblem
@@ -37,6 +38,7 @@ __all__ = [
     "TimeIntegrator",
     "TimeStepRecord",
     "TimeStepping",
+    "cantilever",
     "integrate",
     "reference_stiffness_form",
     "rotating_surface",

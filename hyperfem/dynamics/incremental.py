@@ -35,7 +35,23 @@ from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form
 from hyperfem.dynamics.integrators import TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity
 
-__all__ = ["DynamicState", "IncrementalProblem"]
+__all__ = ["DynamicState", "IncrementalProblem", "unify_cell_quadrature"]
+
+
+def unify_cell_quadrature(form: ufl.Form, metadata: dict) -> ufl.Form:
+    """Give every cell integral of ``form`` the same quadrature ``metadata``.
+
+    FFCx 0.11 evaluates a form wrongly when cell integrals of the same
+    subdomain use different quadrature rules and share a basis table (e.g.
+    :math:`\\int u\\cdot w` with degree 2 plus :math:`\\int u\\cdot u` with
+    degree 1 assembles to neither sum). Inertia terms need degree :math:`2p`
+    while the stored energy of P1 elements uses one point, so every cell
+    integral of an incremental form is put on the mass rule.
+    """
+    integrals = [
+        i.reconstruct(metadata=dict(metadata)) if i.integral_type() == "cell" else i for i in form.integrals()
+    ]
+    return ufl.Form(integrals)
 
 
 class DynamicState:
@@ -116,6 +132,15 @@ class IncrementalProblem:
                     internal = internal + 0.5 * self.damping.beta * self._B * reference_stiffness_form(
                         base.energy_internal, u, dv, dv
                     )
+        if density is not None:
+            md = density.metadata(degree)
+            if not density.lumped:
+                md = {"quadrature_degree": max(md["quadrature_degree"], base.quadrature_degree)}
+            internal = unify_cell_quadrature(internal, md)
+            external = unify_cell_quadrature(external, md)
+            if follower is not None:
+                follower = unify_cell_quadrature(follower, md)
+        self._unified_md = md if density is not None else None
         self.energy_internal = internal
         self.energy_external = external
         self.follower_residual = follower
@@ -126,15 +151,11 @@ class IncrementalProblem:
         self.jacobian = ufl.derivative(self.residual, u, ufl.TrialFunction(V))
 
         # Diagnostics forms at the current state.
-        if density is not None:
-            md = density.metadata(degree)
-            self._kinetic = fem.form(
-                0.5 * density.integral(ufl.dot(self.v, self.v), self.domain, degree)
-            )
-        else:
-            md = {"quadrature_degree": base.quadrature_degree}
-            self._kinetic = None
-        self._mass_md = md
+        self._kinetic = (
+            None
+            if density is None
+            else fem.form(0.5 * density.integral(ufl.dot(self.v, self.v), self.domain, degree))
+        )
         self._elastic = fem.form(base.energy_internal)
         self._external = fem.form(base.energy_external)
 
@@ -222,6 +243,7 @@ class IncrementalProblem:
                 rhs = rhs - self.damping.alpha * self.density.integral(ufl.dot(self.v, test), self.domain, degree)
             if self.damping.beta:
                 rhs = rhs - self.damping.beta * reference_stiffness_form(base.energy_internal, self.u, self.v, test)
+        rhs = unify_cell_quadrature(rhs, self._unified_md)
         M = fpetsc.assemble_matrix(fem.form(m), bcs=base.bcs)
         M.assemble()
         b = fpetsc.assemble_vector(fem.form(rhs))

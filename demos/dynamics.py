@@ -1,0 +1,209 @@
+# %% [markdown]
+# # Dynamic cantilever: the eight experiments of seed 003, §5.7
+#
+# The 10 × 4 × 4 m beam, $x \in [-5, 5]$, clamped at $x = -5$, is set in
+# motion by tractions on its free end or by prescribed motions of its end caps
+# and followed for 3 s. The material is the compressible Neo-Hookean solid
+#
+# $$
+# \psi(F) = \frac{\mu}{2}(\operatorname{tr} C - 3) - \mu \ln J + \frac{\lambda}{2}(\ln J)^2,
+# $$
+#
+# with $E = 10^6$ Pa, $\nu = 0.3$, density $\rho = 1000$ kg/m³ and a viscous body
+# force $c\,\rho\,\dot u$, $c = 0.0004\ \mathrm{s}^{-1}$. Balance of momentum,
+#
+# $$
+# \int_\Omega \rho\,\ddot u\cdot w\,dX + \int_\Omega c\rho\,\dot u\cdot w\,dX
+#   + \int_\Omega P(F) : \nabla w\,dX = \int_{\Gamma} t\cdot w\,dA ,
+# $$
+#
+# is discretised in time by Newmark's average-acceleration rule
+# ($\beta = 1/4$, $\gamma = 1/2$, seed 003 eq. 2.21). Its step is the minimiser of
+# an *incremental potential*
+#
+# $$
+# \Pi_\Delta(u) = \frac{1}{2\beta\Delta t^2}\int_\Omega\rho\,|u - u^\text{pred}|^2\,dX
+#   + \frac{c\gamma}{2\beta\Delta t}\int_\Omega\rho\,|u - \hat u|^2\,dX + \Pi(u),
+# \qquad u^\text{pred} = u_n + \Delta t\,v_n + \Delta t^2(\tfrac12 - \beta)\,a_n ,
+# $$
+#
+# so the same line-searched Newton solver as for the static problems applies
+# (follower loads add a residual term). Backward Euler (seed 000 eq. 2.15,
+# $\Pi_\Delta = \frac{\rho}{2\Delta t^2}\|u - u_n - \Delta t v_n\|^2 + \Pi$) and
+# generalized-$\alpha$ are available with `--scheme`.
+#
+# The step size is controlled by step doubling (seed 003 §5.7.7): one step of
+# $\Delta t$ and two of $\Delta t/2$; if the nodal positions differ by more than
+# `--tol` the step is halved, otherwise the two-half-step result is kept, and
+# after four accepted steps without a reduction $\Delta t$ is doubled. Failed
+# Newton solves and inverted elements also halve the step. The end of the
+# ramps ($t = 1$ s) is a must-hit time.
+#
+# Run with `python demos/dynamics.py --case bend` or
+# `mpiexec -n 2 python demos/dynamics.py --case twist`.
+
+# %%
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from mpi4py import MPI  # noqa: E402
+
+from dolfinx.io import VTXWriter  # noqa: E402
+
+import hyperfem as hf  # noqa: E402
+from hyperfem import dynamics as dyn  # noqa: E402
+from hyperfem.dynamics.cantilever import CASES, TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
+
+SCHEMES = {
+    "newmark": lambda a: dyn.Newmark(),
+    "backward-euler": lambda a: dyn.BackwardEuler(),
+    "generalized-alpha": lambda a: dyn.GeneralizedAlpha(a.rho_inf),
+    "quasi-static": lambda a: dyn.QuasiStatic(),
+}
+
+
+def parse(argv=None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description="Dynamic cantilever experiments (seed 003, §5.7)")
+    p.add_argument("--case", choices=CASES, default="bend")
+    p.add_argument("--t-end", type=float, default=3.0, help="simulated time (s)")
+    p.add_argument("--dt", type=float, default=0.02, help="initial time step (s)")
+    p.add_argument("--dt-max", type=float, default=None, help="largest time step (s)")
+    p.add_argument("--h", type=float, default=1.0, help="element size of the beam mesh (m)")
+    p.add_argument("--degree", type=int, default=1, help="displacement degree")
+    p.add_argument("--scheme", choices=sorted(SCHEMES), default="newmark")
+    p.add_argument("--rho-inf", type=float, default=0.8, help="generalized-alpha spectral radius")
+    p.add_argument("--lumped", action="store_true", help="lumped (vertex-rule) mass, P1 only")
+    p.add_argument("--fixed", action="store_true", help="fixed step (cutback only), no step doubling")
+    p.add_argument("--tol", type=float, default=1e-3, help="step-doubling tolerance on nodal positions (m)")
+    p.add_argument("--output-every", type=float, default=0.1, help="VTX output interval (s)")
+    p.add_argument("--output", type=Path, default=Path("output") / "dynamics", help="output folder")
+    p.add_argument("--no-vtx", action="store_true", help="skip the VTX time series")
+    p.add_argument("--quiet", action="store_true")
+    return p.parse_args(argv)
+
+
+# %% [markdown]
+# ## Model
+# `cantilever_problem` builds the hyperelastic problem of the case with time as
+# its load factor: loads carry time profiles (`Steady`, `Ramp`) and the
+# prescribed motions are `PrescribedDisplacement`s whose value is re-evaluated
+# at each time, e.g. the rigid rotation of the free end about an axis through
+# the centre of the face,
+#
+# $$
+# u(X, t) = R(\theta(t)\,\hat a)(X - c) + c - X .
+# $$
+#
+# `IncrementalProblem` adds the inertia and damping terms of the chosen scheme.
+
+
+# %%
+def main(argv=None) -> dict:
+    args = parse(argv)
+    comm = MPI.COMM_WORLD
+    wall0 = time.perf_counter()
+    spec = CantileverDynamics()
+    domain = hf.beam_mesh(h=args.h, comm=comm)
+    base, must_hit = cantilever_problem(args.case, domain, spec, degree=args.degree)
+    scheme = SCHEMES[args.scheme](args)
+    problem = dyn.IncrementalProblem(
+        base, scheme, dyn.MassDensity(spec.rho, lumped=args.lumped), dyn.viscous_damping(spec.damping)
+    )
+    solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-8, "snes_atol": 1e-8, "snes_max_it": 25})
+    problem.initial_acceleration()
+    out = args.output / args.case
+    diagnostics = dyn.Diagnostics(problem, [TEST_POINT])
+    diagnostics.record()
+
+    # %% [markdown]
+    # ## Output
+    # Displacement and velocity go to a VTX (ADIOS2) time series at the output
+    # times (which are must-hit times), the diagnostics to CSV after every step.
+
+    # %%
+    n_out = int(round(args.t_end / args.output_every)) if args.output_every > 0 else 0
+    output_times = [k * args.output_every for k in range(1, n_out + 1)]
+    writer = None
+    if not args.no_vtx:
+        out.mkdir(parents=True, exist_ok=True) if comm.rank == 0 else None
+        comm.Barrier()
+        writer = VTXWriter(comm, out / "displacement.bp", [problem.u, problem.v], engine="BP4")
+        writer.write(0.0)
+    pending = list(output_times)
+
+    def on_step(record: dyn.TimeStepRecord) -> None:
+        row = diagnostics.record(record)
+        while pending and pending[0] <= record.time + 1e-9:
+            pending.pop(0)
+            if writer is not None:
+                writer.write(record.time)
+        if not args.quiet and comm.rank == 0 and record.step % 10 == 0:
+            print(
+                f"t = {row['time']:.4f} dt = {row['dt']:.4g} its = {row['newton_iterations']} "
+                f"K = {row['kinetic_energy']:.4g} Psi = {row['elastic_energy']:.4g} "
+                f"minJ = {row['min_J']:.3f} x_p = ({row['p0_x']:.3f}, {row['p0_y']:.3f}, {row['p0_z']:.3f})",
+                flush=True,
+            )
+
+    # %% [markdown]
+    # ## Time stepping
+
+    # %%
+    stepping = dyn.TimeStepping(
+        dt=args.dt,
+        t_end=args.t_end,
+        dt_max=args.dt_max,
+        dt_min=args.dt / 2**12,
+        adaptive=not args.fixed,
+        tolerance=args.tol,
+        must_hit=[*must_hit, *output_times],
+    )
+    error = None
+    try:
+        dyn.integrate(problem, solver, stepping, on_step=on_step)
+    except hf.ConvergenceError as exc:  # keep what was computed
+        error = str(exc)
+        if comm.rank == 0:
+            print(f"stopped: {error}", flush=True)
+    if writer is not None:
+        writer.close()
+    wall = time.perf_counter() - wall0
+    summary = {
+        "case": args.case,
+        "scheme": scheme.name,
+        "h": args.h,
+        "degree": args.degree,
+        "lumped": args.lumped,
+        "adaptive": not args.fixed,
+        "tolerance": args.tol,
+        "ranks": comm.size,
+        "dofs": domain.mesh.topology.index_map(0).size_global * 3,
+        "cells": domain.mesh.topology.index_map(3).size_global,
+        "wall_time": wall,
+        "error": error,
+        **diagnostics.summary(),
+        "final_test_point": [diagnostics.rows[-1][f"p0_{a}"] for a in "xyz"],
+    }
+    diagnostics.write_csv(out / "diagnostics.csv")
+    diagnostics.write_json(out / "summary.json", {k: v for k, v in summary.items() if k not in ("steps",)})
+    if comm.rank == 0:
+        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+        if not args.quiet:
+            print(json.dumps(summary, indent=2))
+    return summary
+
+
+# %% [markdown]
+# Plot the motion curve and the energies with
+# `python demos/plot_dynamics.py output/dynamics/bend/diagnostics.csv`.
+
+# %%
+if __name__ == "__main__":
+    main()
