@@ -16,3 +16,6 @@ __all__ = [
     "default_quadrature_degree",
     "linear_profile",
 ]
+from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, SplitEnergy, solid_problem  # noqa: E402
+
+__all__ += ["MixedHyperelasticProblem", "ReactionForce", "SplitEnergy", "solid_problem"]

@@ -1,0 +1,341 @@
+r"""Mixed displacement–pressure (u–p) formulation for nearly incompressible solids.
+
+With the energy split :math:`\psi = \psi_\text{iso}(F) + \frac{K}{2} g(J)^2`
+(:math:`g = \ln J` or :math:`J - 1`), the perturbed-Lagrangian functional
+
+.. math::
+    \Pi(u, p) = \sum_r \int_{\Omega_r} \Big[\psi_{\text{iso},r}(F) + p\, g_r(J)
+        - \frac{p^2}{2K_r}\Big]\,dX - W_\text{dead}(u)
+
+is made stationary over Taylor–Hood :math:`P_2/P_1` (by default) displacement
+and pressure. Eliminating :math:`p = K g(J)` pointwise recovers the
+displacement energy; discretely the pressure is continuous and of lower
+degree, so large :math:`K` no longer locks the displacement. Residual and
+tangent are ``ufl.derivative`` of :math:`\Pi` with respect to the mixed
+unknown :math:`w = (u, p)`.
+
+:class:`MixedHyperelasticProblem` satisfies the solver protocol of
+:class:`~hyperfem.solver.NewtonSolver`: ``u`` is the *mixed* function, the
+displacement is :attr:`~MixedHyperelasticProblem.displacement` (call
+:meth:`~MixedHyperelasticProblem.update_fields`). Because :math:`\Pi` is a
+saddle point in :math:`p`, it cannot be a line-search merit function, so the
+problem reports ``conservative = False`` and the solver uses a residual-based
+line search.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import basix.ufl
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from hyperfem.errors import ParameterError
+from hyperfem.materials.parameters import check_positive
+from hyperfem.materials.volumetric import volumetric_law
+from hyperfem.mesh.domain import Domain
+from hyperfem.problem.boundary_conditions import BoundaryCondition, Clamp, _CompiledDirichlet
+from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
+from hyperfem.problem.loads import BodyForce, DeadTraction, FollowerPressure, FollowerTraction, Load
+
+__all__ = ["MixedHyperelasticProblem", "ReactionForce", "SplitEnergy", "solid_problem"]
+
+Expr = ufl.core.expr.Expr
+
+
+@dataclass(frozen=True)
+class SplitEnergy:
+    r"""An energy split into isochoric and volumetric parts, :math:`\psi_\text{iso}(F) + U(J)`.
+
+    Attributes:
+        isochoric: :math:`\psi_\text{iso}(F)` (a function of the deformation gradient).
+        bulk_modulus: :math:`K > 0`.
+        volumetric: Volumetric law name; the mixed formulation needs one of
+            the form :math:`\frac{K}{2} g(J)^2` (``"log"``, ``"quadratic"``).
+    """
+
+    isochoric: Callable[[Expr], Expr]
+    bulk_modulus: float
+    volumetric: str = "log"
+
+    def __post_init__(self) -> None:
+        check_positive("bulk_modulus", self.bulk_modulus, "SplitEnergy")
+        volumetric_law(self.volumetric)
+
+    def energy(self, F: Expr) -> Expr:
+        """The full energy :math:`\\psi(F)` (for the pure displacement formulation)."""
+        return self.isochoric(F) + volumetric_law(self.volumetric).energy(ufl.det(F), self.bulk_modulus)
+
+    def mixed_energy(self, F: Expr, p: Expr) -> Expr:
+        r""":math:`\psi_\text{iso}(F) + p\,g(J) - p^2/(2K)`."""
+        g = volumetric_law(self.volumetric).pressure_measure
+        if g is None:
+            raise ParameterError(
+                f"SplitEnergy: volumetric law {self.volumetric!r} is not of the form K/2 g(J)^2; "
+                "use 'log' or 'quadratic' with the mixed formulation"
+            )
+        return self.isochoric(F) + p * g(ufl.det(F)) - p**2 / (2.0 * self.bulk_modulus)
+
+
+class _MixedDirichlet(_CompiledDirichlet):
+    """A displacement Dirichlet condition on the displacement block of a mixed space."""
+
+    def __init__(self, bc: BoundaryCondition, W: fem.FunctionSpace, domain: Domain):  # noqa: D107
+        fdim = domain.tdim - 1
+        facets = domain.facets(bc.boundary)
+        Wu = W.sub(0)
+        gdim = domain.gdim
+        if isinstance(bc, Clamp):
+            components, value = list(range(gdim)), None
+        else:
+            components = list(range(gdim)) if bc.components is None else [int(c) for c in bc.components]
+            value = bc.value
+            for c in components:
+                if not 0 <= c < gdim:
+                    raise ParameterError(
+                        f"PrescribedDisplacement on {bc.boundary!r}: component {c} outside 0..{gdim - 1}"
+                    )
+        self.bc = bc
+        import inspect
+
+        self._parametric = callable(value) and len(inspect.signature(value).parameters) >= 2
+        self._parts = []
+        self.dirichlet = []
+        whole = components == list(range(gdim))
+        subs = [(Wu, None)] if whole else [(Wu.sub(c), c) for c in components]
+        for sub, comp in subs:
+            collapsed = sub.collapse()[0]
+            g = fem.Function(collapsed)
+            w = fem.Function(collapsed)
+            dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
+            self.dirichlet.append(fem.dirichletbc(w, dofs, sub))
+            self._parts.append((g, w, comp, components))
+        if value is not None and not self._parametric:
+            self._interpolate(value, None)
+
+
+def _vector(value, x, gdim: int, what: str):
+    if callable(value):
+        return value(x)
+    vals = [float(v) for v in value]
+    if len(vals) != gdim:
+        raise ParameterError(f"{what}: expected {gdim} components, got {len(vals)}")
+    return ufl.as_vector(vals)
+
+
+class MixedHyperelasticProblem:
+    """Taylor–Hood u–p problem of a nearly incompressible body.
+
+    Args:
+        domain: Mesh with named groups.
+        material: A :class:`SplitEnergy`, or a mapping region name →
+            :class:`SplitEnergy` (every cell must belong to one region).
+        bcs: Displacement Dirichlet conditions (by boundary name).
+        loads: External loads (dead and follower), as for
+            :class:`~hyperfem.problem.HyperelasticProblem`.
+        degree: Displacement degree (default 2).
+        pressure_degree: Pressure degree (default ``degree - 1``; Taylor–Hood).
+        quadrature_degree: Default :func:`~hyperfem.problem.default_quadrature_degree` of ``degree``.
+        updaters: Objects with ``update(s)`` called by :meth:`set_load_factor`
+            (e.g. :class:`~hyperfem.activation.Activation`).
+
+    Attributes:
+        u: The mixed unknown :math:`w = (u, p)` (what the solver updates).
+        displacement, pressure: Collapsed copies, refreshed by :meth:`update_fields`.
+        F: Deformation gradient (UFL, from the displacement block).
+        p: Pressure (UFL, from the pressure block).
+    """
+
+    saddle_point = True
+
+    def __init__(
+        self,
+        domain: Domain,
+        material: SplitEnergy | Mapping[str, SplitEnergy],
+        *,
+        bcs: Sequence[BoundaryCondition] = (),
+        loads: Sequence[Load] = (),
+        degree: int = 2,
+        pressure_degree: int | None = None,
+        quadrature_degree: int | None = None,
+        updaters: Iterable = (),
+    ):
+        pressure_degree = degree - 1 if pressure_degree is None else pressure_degree
+        if degree < 2 or not 1 <= pressure_degree < degree:
+            raise ParameterError(
+                f"MixedHyperelasticProblem: need degree >= 2 and 1 <= pressure_degree < degree, "
+                f"got {degree}/{pressure_degree}"
+            )
+        self.domain = domain
+        mesh = domain.mesh
+        gdim = domain.gdim
+        self.degree = degree
+        self.pressure_degree = pressure_degree
+        self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree)
+        md = {"quadrature_degree": self.quadrature_degree}
+        cell = mesh.basix_cell()
+        el_u = basix.ufl.element("Lagrange", cell, degree, shape=(gdim,))
+        el_p = basix.ufl.element("Lagrange", cell, pressure_degree)
+        self.W = fem.functionspace(mesh, basix.ufl.mixed_element([el_u, el_p]))
+        self.u = fem.Function(self.W, name="state")
+        self.V, self._u_dofs = self.W.sub(0).collapse()
+        self.Q, self._p_dofs = self.W.sub(1).collapse()
+        self.displacement = fem.Function(self.V, name="displacement")
+        self.pressure = fem.Function(self.Q, name="pressure")
+        u, p = ufl.split(self.u)
+        v = ufl.TestFunction(self.W)
+        v_u, _ = ufl.split(v)
+        dw = ufl.TrialFunction(self.W)
+        self.p = p
+        self.F = ufl.Identity(gdim) + ufl.grad(u)
+        X = ufl.SpatialCoordinate(mesh)
+
+        if isinstance(material, SplitEnergy):
+            self.energy_internal = material.mixed_energy(self.F, p) * domain.dx(metadata=md)
+        else:
+            if not material:
+                raise ParameterError("MixedHyperelasticProblem: material mapping is empty")
+            self.energy_internal = sum(
+                m.mixed_energy(self.F, p) * domain.dx(name, metadata=md) for name, m in material.items()
+            )
+        self.material = material
+        self._dirichlet = [_MixedDirichlet(bc, self.W, domain) for bc in bcs]
+        self._updaters = list(updaters)
+
+        self._load_scales: list[tuple[fem.Constant, Load]] = []
+        external, follower = [], []
+        for load in loads:
+            c = fem.Constant(mesh, 0.0)
+            self._load_scales.append((c, load))
+            if isinstance(load, DeadTraction):
+                t = _vector(load.value, X, gdim, f"DeadTraction on {load.boundary!r}")
+                external.append(c * ufl.dot(t, u) * domain.ds(load.boundary, metadata=md))
+            elif isinstance(load, BodyForce):
+                b = _vector(load.value, X, gdim, "BodyForce")
+                external.append(c * ufl.dot(b, u) * domain.dx(load.region, metadata=md))
+            elif isinstance(load, FollowerTraction):
+                t = _vector(load.value, X + u, gdim, f"FollowerTraction on {load.boundary!r}")
+                follower.append(-c * ufl.dot(t, v_u) * domain.ds(load.boundary, metadata=md))
+            elif isinstance(load, FollowerPressure):
+                N = ufl.FacetNormal(mesh)
+                J = ufl.det(self.F)
+                follower.append(
+                    c * float(load.value) * J * ufl.dot(ufl.inv(self.F).T * N, v_u)
+                    * domain.ds(load.boundary, metadata=md)
+                )
+            else:
+                raise ParameterError(f"MixedHyperelasticProblem: unknown load type {type(load).__name__}")
+        zero = fem.Constant(mesh, 0.0) * ufl.dot(u, u) * domain.dx(metadata=md)
+        self.energy_external = sum(external) if external else zero
+        self.follower_residual = sum(follower) if follower else None
+        # Pi is stationary, not minimal, in p: never use it as a line-search merit.
+        self.conservative = False
+        self.energy = self.energy_internal - self.energy_external
+        self.residual = ufl.derivative(self.energy, self.u, v)
+        if self.follower_residual is not None:
+            self.residual = self.residual + self.follower_residual
+        self.jacobian = ufl.derivative(self.residual, self.u, dw)
+        self.load_factor = 0.0
+        self.set_load_factor(0.0)
+
+    @property
+    def bcs(self) -> list[fem.DirichletBC]:
+        """The DOLFINx Dirichlet conditions on the displacement block."""
+        return [d for c in self._dirichlet for d in c.dirichlet]
+
+    def set_load_factor(self, s: float) -> None:
+        """Set loads, prescribed displacements and updaters (activations) for factor/time ``s``."""
+        self.load_factor = float(s)
+        for c, load in self._load_scales:
+            c.value = float(load.profile(s))
+        for d in self._dirichlet:
+            d.update(s)
+        for updater in self._updaters:
+            updater.update(s)
+
+    def update_fields(self) -> tuple[fem.Function, fem.Function]:
+        """Copy the displacement and pressure blocks into :attr:`displacement`, :attr:`pressure`."""
+        self.displacement.x.array[:] = self.u.x.array[self._u_dofs]
+        self.pressure.x.array[:] = self.u.x.array[self._p_dofs]
+        return self.displacement, self.pressure
+
+    def volume_jacobian(self) -> Expr:
+        """:math:`J = \\det F` as a UFL expression."""
+        return ufl.det(self.F)
+
+    def quadrature_points(self) -> np.ndarray:
+        """Reference quadrature points of the volume rule."""
+        import basix
+
+        pts, _ = basix.make_quadrature(self.domain.mesh.basix_cell(), self.quadrature_degree)
+        return pts
+
+
+def solid_problem(
+    domain: Domain,
+    material: SplitEnergy | Mapping[str, SplitEnergy],
+    *,
+    formulation: str = "mixed",
+    degree: int | None = None,
+    **kwargs,
+):
+    """Build the problem of a split energy in the chosen formulation.
+
+    Args:
+        domain: Mesh with named groups.
+        material: Split energy (or mapping region → split energy).
+        formulation: ``"mixed"`` (Taylor–Hood u–p) or ``"displacement"``.
+        degree: Displacement degree (default 2 for mixed, 1 for displacement).
+        **kwargs: Passed on (``bcs``, ``loads``, ``quadrature_degree``...).
+    """
+    if formulation == "mixed":
+        return MixedHyperelasticProblem(domain, material, degree=degree or 2, **kwargs)
+    if formulation == "displacement":
+        kwargs.pop("updaters", None)
+        psi = material.energy if isinstance(material, SplitEnergy) else {k: m.energy for k, m in material.items()}
+        return HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
+    raise ParameterError(f"unknown formulation {formulation!r} (use 'mixed' or 'displacement')")
+
+
+class ReactionForce:
+    r"""Total force :math:`\int_\Gamma P N\,dA` exerted on the body at a named (Dirichlet) boundary.
+
+    Computed from the residual of the stored energy,
+    :math:`R_i = \partial\Pi_\text{int}/\partial u\,[e_i \chi_\Gamma]`, with
+    :math:`\chi_\Gamma` the finite-element function that is 1 at the dofs of
+    the boundary and 0 elsewhere (exact for the discrete equilibrium). The
+    form is compiled once.
+
+    Args:
+        problem: A :class:`~hyperfem.problem.HyperelasticProblem` or
+            :class:`MixedHyperelasticProblem` (or an object wrapping one).
+        boundary: Boundary name.
+    """
+
+    def __init__(self, problem, boundary: str):
+        domain = problem.domain
+        self.comm = domain.comm
+        W = problem.u.function_space
+        mixed = getattr(problem, "saddle_point", False)
+        Vu = W.sub(0) if mixed else W
+        self._test = fem.Function(W)
+        fdim = domain.tdim - 1
+        facets = domain.facets(boundary)
+        self._dofs = []
+        for i in range(domain.gdim):
+            sub = Vu.sub(i)
+            collapsed = sub.collapse()[0]
+            self._dofs.append(fem.locate_dofs_topological((sub, collapsed), fdim, facets)[0])
+        self._form = fem.form(ufl.derivative(problem.energy_internal, problem.u, self._test))
+
+    def __call__(self) -> np.ndarray:
+        """The force vector (all ranks get the same values)."""
+        out = np.zeros(len(self._dofs))
+        for i, dofs in enumerate(self._dofs):
+            self._test.x.array[:] = 0.0
+            self._test.x.array[dofs] = 1.0
+            out[i] = fem.assemble_scalar(self._form)
+        return self.comm.allreduce(out)
