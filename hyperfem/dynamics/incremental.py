@@ -69,6 +69,10 @@ class IncrementalProblem:
         integrator: Time-stepping scheme.
         density: Mass density (and lumping); ignored by quasi-static schemes.
         damping: Rayleigh damping; ``None`` for none.
+        boundary_predictor: When prescribed boundary values change over a
+            step, start Newton from one linearised step that carries the
+            boundary increment into the interior (instead of moving only the
+            boundary nodes, which can invert the adjacent cells).
 
     Attributes:
         u: Displacement :math:`u_{n+1}` (the base problem's unknown).
@@ -82,8 +86,11 @@ class IncrementalProblem:
         integrator: TimeIntegrator,
         density: MassDensity | None = None,
         damping: RayleighDamping | None = None,
+        boundary_predictor: bool = True,
     ):
         self.base = base
+        self.boundary_predictor = boundary_predictor
+        self._predictor = None
         self.integrator = integrator
         self.domain = base.domain
         self.V = base.V
@@ -202,6 +209,7 @@ class IncrementalProblem:
         self._u_tilde.x.array[:] = u_tilde
         self._u_hat.x.array[:] = u_hat
         af = float(integ.alpha_f)
+        old = [bc.g.x.array.copy() for bc in self.base.bcs]
         self.base.set_load_factor(t_new)
         if af:
             # Loads at t_{n+1-alpha_f}, boundary values at t_{n+1}.
@@ -209,9 +217,42 @@ class IncrementalProblem:
             self.base.set_load_factor(t_new - af * dt)
             for bc, g in zip(self.base.bcs, values):
                 bc.g.x.array[:] = g
-        if integ.dynamic:
-            # Explicit predictor u_n + dt v_n as the Newton initial guess.
-            self.u.x.array[:] += dt * self.v.x.array
+        # Predictor u_n + dt v_n as the Newton initial guess (secant rate when quasi-static).
+        self.u.x.array[:] += dt * self.v.x.array
+        if self.boundary_predictor:
+            moved = any(not np.array_equal(g, bc.g.x.array) for g, bc in zip(old, self.base.bcs))
+            if self.domain.comm.allreduce(moved, op=MPI.LOR):
+                self._lift_boundary_increment()
+
+    def _lift_boundary_increment(self) -> None:
+        """One linearised step from the predictor with the new boundary values."""
+        if self._predictor is None:
+            R, K = fem.form(self.residual), fem.form(self.jacobian)
+            A = fpetsc.create_matrix(K)
+            b = fpetsc.create_vector(self.V)
+            ksp = PETSc.KSP().create(self.domain.comm)
+            ksp.setOperators(A)
+            ksp.setType("preonly")
+            ksp.getPC().setType("lu")
+            ksp.getPC().setFactorSolverType("mumps")
+            self._predictor = (R, K, A, b, ksp, A.createVecRight())
+        R, K, A, b, ksp, du = self._predictor
+        bcs = self.base.bcs
+        x = self.u.x.petsc_vec
+        A.zeroEntries()
+        fpetsc.assemble_matrix(A, K, bcs=bcs)
+        A.assemble()
+        with b.localForm() as loc:
+            loc.set(0.0)
+        fpetsc.assemble_vector(b, R)
+        b.scale(-1.0)
+        fpetsc.apply_lifting(b, [K], bcs=[bcs], x0=[x], alpha=1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
+        ksp.solve(b, du)
+        if ksp.getConvergedReason() > 0 and np.isfinite(du.norm()):
+            x.axpy(1.0, du)
+            self.u.x.scatter_forward()
 
     def commit(self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray) -> None:
         """Accept the converged step: update :math:`v, a` and the time."""

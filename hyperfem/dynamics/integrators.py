@@ -72,7 +72,11 @@ class TimeIntegrator:
 
 
 class QuasiStatic(TimeIntegrator):
-    """No inertia: each step solves the equilibrium at the new time."""
+    r"""No inertia: each step solves the equilibrium at the new time.
+
+    The velocity kept is the rate :math:`(u_{n+1} - u_n)/\Delta t`; it only
+    serves the secant predictor :math:`u_n + \Delta t\,v_n` of the next step.
+    """
 
     name = "quasi-static"
     dynamic = False
@@ -82,7 +86,7 @@ class QuasiStatic(TimeIntegrator):
         return 0.0, u_n, 0.0, u_n
 
     def update(self, dt, u, u_n, v_n, a_n):
-        return np.zeros_like(u), np.zeros_like(u)
+        return (u - u_n) / dt, np.zeros_like(u)
 
 
 class BackwardEuler(TimeIntegrator):
