@@ -53,6 +53,7 @@ __all__ = [
     "MeshFileNotFoundError",
     "NewtonSolver",
     "ParameterError",
+    "PrescribedDisplacement",
     "SolveRecord",
     "StepRecord",
     "UnknownGroupError",

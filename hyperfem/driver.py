@@ -29,7 +29,7 @@ def run_quasistatic(
     name: str,
     output_dir: str | Path,
     probe_points: Sequence[Sequence[float]] = (),
-    stepping: LoadStepping = LoadStepping(),
+    stepping: LoadStepping | None = None,
     target: float = 1.0,
     extra: dict | None = None,
 ) -> dict:
@@ -90,7 +90,7 @@ def run_quasistatic(
             steps.append(entry)
 
         try:
-            solve_quasistatic(solver, target, stepping, on_step)
+            solve_quasistatic(solver, target, stepping or LoadStepping(), on_step)
             completed, error = True, None
         except ConvergenceError as exc:
             completed, error = False, str(exc)
@@ -122,7 +122,7 @@ def format_summary(summary: dict) -> str:
         f"  load steps: {summary['load_steps']}, Newton iterations per step: {summary['newton_iterations']}",
     ]
     if "probe_displacement" in summary:
-        for p, d in zip(summary["probe_points"], summary["probe_displacement"]):
+        for p, d in zip(summary["probe_points"], summary["probe_displacement"], strict=True):
             lines.append(f"  displacement at {tuple(p)}: {np.array2string(np.asarray(d), precision=6)} m")
     lines.append(f"  wall time: {summary['wall_time']:.2f} s")
     lines.append(f"  output: {summary['files']['vtx']} (ParaView), {summary['files']['summary']}")

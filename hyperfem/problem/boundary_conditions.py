@@ -127,7 +127,7 @@ class _CompiledDirichlet:
                         f"{len(components)} components"
                     )
                 if comp is None:
-                    g.interpolate(lambda x: np.outer(vals, np.ones(x.shape[1])))
+                    g.interpolate(lambda x, vals=vals: np.outer(vals, np.ones(x.shape[1])))
                 else:
                     v = vals[components.index(comp)]
                     g.interpolate(lambda x, v=v: np.full(x.shape[1], v))

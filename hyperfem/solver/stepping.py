@@ -82,7 +82,7 @@ class StepRecord:
 def solve_quasistatic(
     solver: NewtonSolver,
     target: float = 1.0,
-    stepping: LoadStepping = LoadStepping(),
+    stepping: LoadStepping | None = None,
     on_step: Callable[[StepRecord], None] | None = None,
 ) -> list[StepRecord]:
     """Ramp the load factor of ``solver.problem`` to ``target``.
@@ -90,7 +90,7 @@ def solve_quasistatic(
     Args:
         solver: The Newton solver (its problem holds the state).
         target: Final load factor.
-        stepping: Increment control.
+        stepping: Increment control (default :class:`LoadStepping`).
         on_step: Called after every converged step (e.g. to write output).
 
     Returns:
@@ -100,6 +100,7 @@ def solve_quasistatic(
         ConvergenceError: When the increment falls below ``min_increment``;
             ``load_factor`` and ``history`` tell how far it got.
     """
+    stepping = LoadStepping() if stepping is None else stepping
     problem = solver.problem
     u = problem.u
     s = problem.load_factor
