@@ -91,10 +91,8 @@ def parse(argv=None) -> argparse.Namespace:
 # %%
 def build_materials(domain, a0, args, activation):
     bulk = args.bulk_factor
-    mp = MuscleParameters.muscle()
-    tp = MuscleParameters.tendon()
-    mp = MuscleParameters.muscle(K=mp.K * bulk)
-    tp = MuscleParameters.tendon(K=tp.K * bulk)
+    mp = MuscleParameters.muscle(K=MuscleParameters.muscle().K * bulk)
+    tp = MuscleParameters.tendon(K=MuscleParameters.tendon().K * bulk)
     materials = {"muscle": SplitEnergy(lambda F: muscle_isochoric(F, a0, activation.expr, mp), mp.K)}
     for name in TENDONS:
         materials[name] = SplitEnergy(lambda F: muscle_isochoric(F, a0, 0.0, tp), tp.K)
@@ -102,15 +100,8 @@ def build_materials(domain, a0, args, activation):
 
 
 def make_problem(domain, materials, args, bcs, loads, activation):
-    quad = None
     return solid_problem(
-        domain,
-        materials,
-        formulation=args.formulation,
-        bcs=bcs,
-        loads=loads,
-        updaters=[activation],
-        quadrature_degree=quad,
+        domain, materials, formulation=args.formulation, bcs=bcs, loads=loads, updaters=[activation]
     )
 
 
@@ -251,6 +242,7 @@ def run_experiment(kind, domain, a0, args, comm):
     return {
         "steps": rows,
         "cutbacks": sum(st.cutbacks for st in steps),
+        "insertion_area": post.area,
         "dofs": problem.u.function_space.dofmap.index_map.size_global * problem.u.function_space.dofmap.index_map_bs,
     }
 

@@ -289,14 +289,21 @@ def solid_problem(
         material: Split energy (or mapping region → split energy).
         formulation: ``"mixed"`` (Taylor–Hood u–p) or ``"displacement"``.
         degree: Displacement degree (default 2 for mixed, 1 for displacement).
-        **kwargs: Passed on (``bcs``, ``loads``, ``quadrature_degree``...).
+        **kwargs: Passed on (``bcs``, ``loads``, ``quadrature_degree``, ``updaters``...);
+            with ``updaters`` the displacement problem is wrapped in an
+            :class:`~hyperfem.activation.ActivatedProblem`.
     """
     if formulation == "mixed":
         return MixedHyperelasticProblem(domain, material, degree=degree or 2, **kwargs)
     if formulation == "displacement":
-        kwargs.pop("updaters", None)
+        updaters = list(kwargs.pop("updaters", ()))
         psi = material.energy if isinstance(material, SplitEnergy) else {k: m.energy for k, m in material.items()}
-        return HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
+        problem = HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
+        if updaters:
+            from hyperfem.activation import ActivatedProblem
+
+            return ActivatedProblem(problem, updaters)
+        return problem
     raise ParameterError(f"unknown formulation {formulation!r} (use 'mixed' or 'displacement')")
 
 

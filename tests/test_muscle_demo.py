@@ -1,0 +1,67 @@
+"""The fusiform-muscle demo runs (serially and on 2 ranks, with the same numbers) and behaves physically."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+DEMO = Path(__file__).resolve().parent.parent / "demos" / "muscle.py"
+
+# Serial run of `demos/muscle.py --h 0.008 --steps 3` (268 cells, Taylor-Hood, 2053 dofs); 2 ranks must agree.
+EXPECTED_REACTION = [0.0, 1.4591467219251992, 2.6522203275253986, 3.6820586223406635]
+EXPECTED_BULGE = 0.0013199188697279648
+EXPECTED_SHORTENING = 0.013041431682012513
+
+
+@pytest.fixture(scope="module")
+def summary(tmp_path_factory):
+    folder = Path(MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("muscle")), root=0))
+    spec = importlib.util.spec_from_file_location("demo_muscle", DEMO)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    result = module.main(["--h", "0.008", "--steps", "3", "--output", str(folder)])
+    result["folder"] = folder
+    return result
+
+
+def test_demo_outputs(summary):
+    folder = summary["folder"]
+    assert summary["ranks"] == MPI.COMM_WORLD.size
+    written = json.loads((folder / "muscle.json").read_text())
+    assert written["activations"] == pytest.approx([0.0, 1 / 3, 2 / 3, 1.0])
+    for kind in ("isometric", "free"):
+        assert (folder / f"muscle_{kind}_u.bp").is_dir()
+        assert (folder / f"muscle_{kind}_cells.bp").is_dir()
+
+
+def test_isometric_reaction_rises_with_activation(summary):
+    forces = np.array(summary["isometric_reaction"])
+    assert abs(forces[0]) < 1e-9  # passive, unloaded
+    assert np.all(np.diff(forces) > 0)
+    np.testing.assert_allclose(forces, EXPECTED_REACTION, rtol=1e-6, atol=1e-9)
+    # clamped ends: the lateral reaction components vanish by symmetry (up to the mesh)
+    last = summary["isometric"]["steps"][-1]["reaction_insertion"]
+    assert abs(last[0]) < 0.05 * last[2] and abs(last[1]) < 0.05 * last[2]
+
+
+def test_bulge_and_shortening(summary):
+    assert summary["isometric_bulge"] == pytest.approx(EXPECTED_BULGE, rel=1e-6)
+    assert summary["free_shortening"] == pytest.approx(EXPECTED_SHORTENING, rel=1e-6)
+    bulges = [row["max_radial_bulge"] for row in summary["isometric"]["steps"]]
+    assert np.all(np.diff(bulges) > 0)
+    # free contraction: the insertion moves towards the origin as activation rises
+    uz = [row["insertion_uz"] for row in summary["free"]["steps"]]
+    assert uz[0] > 0 and np.all(np.diff(uz) < 0)
+
+
+def test_free_contraction_equilibrium(summary):
+    """The internal force at the (free) insertion face equals the applied dead traction at every step."""
+    free = summary["free"]
+    applied = 2.0e3 * free["insertion_area"]
+    for row in free["steps"]:
+        assert row["reaction_insertion"][2] == pytest.approx(applied, rel=1e-8)
