@@ -100,9 +100,7 @@ def build_materials(domain, a0, args, activation):
 
 
 def make_problem(domain, materials, args, bcs, loads, activation):
-    return solid_problem(
-        domain, materials, formulation=args.formulation, bcs=bcs, loads=loads, updaters=[activation]
-    )
+    return solid_problem(domain, materials, formulation=args.formulation, bcs=bcs, loads=loads, updaters=[activation])
 
 
 # %% [markdown]
@@ -155,8 +153,7 @@ class Post:
                 sig = P * F.T / J
             a = activation.expr if name == "muscle" else fem.Constant(mesh, 0.0)
             self._region.append(
-                (domain.cells(name), fem.Expression(sig, T0.element.interpolation_points),
-                 fem.Expression(a, pts))
+                (domain.cells(name), fem.Expression(sig, T0.element.interpolation_points), fem.Expression(a, pts))
             )
 
     def refresh(self):
@@ -233,9 +230,7 @@ def run_experiment(kind, domain, a0, args, comm):
     stepping = hf.LoadStepping(
         initial_increment=1.0 / args.steps, max_increment=1.0 / args.steps, min_increment=1.0 / (64 * args.steps)
     )
-    steps = hf.solve_quasistatic(
-        solver, 1.0, stepping, on_step=lambda st: record(st.load_factor, st.solve.iterations)
-    )
+    steps = hf.solve_quasistatic(solver, 1.0, stepping, on_step=lambda st: record(st.load_factor, st.solve.iterations))
     if writers:
         for w in writers:
             w.close()

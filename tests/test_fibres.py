@@ -106,8 +106,12 @@ def test_fibres_from_meshio_file(tmp_path):
         centroids = m.points[tets].mean(axis=1)
         meshio.write(
             vtu,
-            meshio.Mesh(m.points, [("tetra", tets)], point_data={"fibres": 5.0 * _field(m.points)},
-                        cell_data={"fibres": [2.0 * _field(centroids)]}),
+            meshio.Mesh(
+                m.points,
+                [("tetra", tets)],
+                point_data={"fibres": 5.0 * _field(m.points)},
+                cell_data={"fibres": [2.0 * _field(centroids)]},
+            ),
         )
     comm.Barrier()
     domain = hf.read_mesh(msh, comm)

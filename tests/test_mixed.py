@@ -41,8 +41,12 @@ def _box(L=1.0, w=1.0, n=(2, 2, 2)):
     mesh = dmesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([L, w, w])], list(n), dmesh.CellType.tetrahedron)
     return hf.Domain.from_locators(
         mesh,
-        {"x0": lambda x: np.isclose(x[0], 0.0), "x1": lambda x: np.isclose(x[0], L),
-         "y0": lambda x: np.isclose(x[1], 0.0), "z0": lambda x: np.isclose(x[2], 0.0)},
+        {
+            "x0": lambda x: np.isclose(x[0], 0.0),
+            "x1": lambda x: np.isclose(x[0], L),
+            "y0": lambda x: np.isclose(x[1], 0.0),
+            "z0": lambda x: np.isclose(x[2], 0.0),
+        },
     )
 
 
@@ -51,7 +55,7 @@ def _neo_hookean(mu, K):
 
 
 def _smooth(x, c):
-    out = np.zeros((x.shape[0] if False else 3, x.shape[1]))
+    out = np.zeros((3, x.shape[1]))
     for i in range(3):
         out[i] = c[i, 0] * x[0] + c[i, 1] * x[1] ** 2 + c[i, 2] * np.sin(3 * x[0] + x[2]) + c[i, 3] * x[0] * x[1] * x[2]
     return out
@@ -184,10 +188,12 @@ def test_uniaxial_cube_homogeneous(K):
     """Rollers: both formulations give the homogeneous answer; it tends to 1/sqrt(l) - 1 as K/mu grows."""
     mu, lam = 1.0, 1.5
     domain = _box()
-    bcs = [hf.PrescribedDisplacement("x0", [0.0], components=[0]),
-           hf.PrescribedDisplacement("y0", [0.0], components=[1]),
-           hf.PrescribedDisplacement("z0", [0.0], components=[2]),
-           hf.PrescribedDisplacement("x1", [lam - 1.0], components=[0])]
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
+        hf.PrescribedDisplacement("x1", [lam - 1.0], components=[0]),
+    ]
     s = _lateral_stretch_compressible(lam, mu, K)
     incompressible = 1 / math.sqrt(lam) - 1
     assert abs(s - 1 - incompressible) < 2.0 / K
@@ -205,10 +211,12 @@ def test_locking_gripped_bar():
     """
     mu, K, lam, L, w = 1.0, 1e3, 1.2, 3.0, 0.5
     domain = _box(L=L, w=w, n=(6, 1, 1))
-    bcs = [hf.Clamp("x0"),
-           hf.PrescribedDisplacement("x1", [(lam - 1.0) * L], components=[0]),
-           hf.PrescribedDisplacement("y0", [0.0], components=[1]),
-           hf.PrescribedDisplacement("z0", [0.0], components=[2])]
+    bcs = [
+        hf.Clamp("x0"),
+        hf.PrescribedDisplacement("x1", [(lam - 1.0) * L], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
+    ]
     exact = 1 / math.sqrt(lam) - 1
     results = {}
     for formulation in ("displacement", "mixed"):

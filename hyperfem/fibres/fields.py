@@ -53,9 +53,7 @@ def fibre_space(mesh, representation: str = "DG0", quadrature_degree: int = 1) -
     if representation == "quadrature":
         element = basix.ufl.quadrature_element(mesh.basix_cell(), value_shape=(gdim,), degree=quadrature_degree)
         return fem.functionspace(mesh, element)
-    raise ParameterError(
-        f"unknown fibre representation {representation!r} (available: {', '.join(REPRESENTATIONS)})"
-    )
+    raise ParameterError(f"unknown fibre representation {representation!r} (available: {', '.join(REPRESENTATIONS)})")
 
 
 def normalize_fibres(a0: fem.Function, tol: float = 1e-12) -> fem.Function:
@@ -83,9 +81,7 @@ def constant_fibres(
     d = np.asarray(direction, dtype=float)
     if d.shape != (mesh.geometry.dim,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0:
         raise ParameterError(f"constant_fibres: need a nonzero finite {mesh.geometry.dim}-vector, got {direction!r}")
-    return fibres_from_callable(
-        mesh, lambda x: np.outer(d, np.ones(x.shape[1])), representation, quadrature_degree
-    )
+    return fibres_from_callable(mesh, lambda x: np.outer(d, np.ones(x.shape[1])), representation, quadrature_degree)
 
 
 def fibres_from_callable(

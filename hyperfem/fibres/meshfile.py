@@ -87,7 +87,7 @@ def fibres_from_file(domain: Domain, path: str | Path, name: str, location: str 
             raise MeshError(f"{path}: no cell data named {name!r} (available: {sorted(data.cell_data)})")
         pts = np.asarray(data.points, dtype=float)[:, :gdim]
         centroids, vals = [], []
-        for block, block_data in zip(data.cells, data.cell_data[name]):
+        for block, block_data in zip(data.cells, data.cell_data[name], strict=True):
             if block.type in _VOLUME_CELLS and block.data.shape[1] > gdim:
                 nv = {"tetra10": 4, "hexahedron27": 8, "triangle6": 3, "quad9": 4}.get(block.type, block.data.shape[1])
                 centroids.append(pts[block.data[:, :nv]].mean(axis=1))

@@ -30,3 +30,30 @@ __all__ = [
     "saint_venant_kirchhoff",
     "saint_venant_kirchhoff_stress",
 ]
+
+from hyperfem.materials.mooney_rivlin import (  # noqa: E402
+    MooneyRivlinParameters,
+    mooney_rivlin,
+    mooney_rivlin_stress,
+)
+from hyperfem.materials.muscle import (  # noqa: E402
+    MuscleParameters,
+    muscle,
+    muscle_isochoric,
+    muscle_stress,
+    transversely_isotropic,
+)
+from hyperfem.materials.volumetric import VOLUMETRIC_LAWS, volumetric_energy  # noqa: E402
+
+__all__ += [
+    "MooneyRivlinParameters",
+    "MuscleParameters",
+    "VOLUMETRIC_LAWS",
+    "mooney_rivlin",
+    "mooney_rivlin_stress",
+    "muscle",
+    "muscle_isochoric",
+    "muscle_stress",
+    "transversely_isotropic",
+    "volumetric_energy",
+]

@@ -139,16 +139,18 @@ def check_activation(alpha: object, where: str = "activation") -> None:
 
 
 # -- force–length curves -------------------------------------------------------
-def force_length_active(l: Expr) -> Expr:
+def force_length_active(ell: Expr) -> Expr:
     """Active force–length curve :math:`f_\\text{act}(l)` (piecewise quadratic, zero outside (0.4, 1.6))."""
     return ufl.conditional(
-        ufl.le(l, 0.4),
+        ufl.le(ell, 0.4),
         0.0,
         ufl.conditional(
-            ufl.le(l, 0.6),
-            9.0 * (l - 0.4) ** 2,
+            ufl.le(ell, 0.6),
+            9.0 * (ell - 0.4) ** 2,
             ufl.conditional(
-                ufl.lt(l, 1.4), 1.0 - 4.0 * (1.0 - l) ** 2, ufl.conditional(ufl.lt(l, 1.6), 9.0 * (l - 1.6) ** 2, 0.0)
+                ufl.lt(ell, 1.4),
+                1.0 - 4.0 * (1.0 - ell) ** 2,
+                ufl.conditional(ufl.lt(ell, 1.6), 9.0 * (ell - 1.6) ** 2, 0.0),
             ),
         ),
     )
@@ -159,48 +161,48 @@ _A14 = _A06 + 0.8 - (4.0 / 3.0) * 2.0 * 0.4**3  # int_0.4^1.4 f_act
 _A16 = _A14 + 3.0 * 0.2**3  # int_0.4^1.6 f_act
 
 
-def force_length_active_integral(l: Expr) -> Expr:
+def force_length_active_integral(ell: Expr) -> Expr:
     r""":math:`A(l) = \int_0^l f_\text{act}(t)\,dt` in closed form."""
     return ufl.conditional(
-        ufl.le(l, 0.4),
+        ufl.le(ell, 0.4),
         0.0,
         ufl.conditional(
-            ufl.le(l, 0.6),
-            3.0 * (l - 0.4) ** 3,
+            ufl.le(ell, 0.6),
+            3.0 * (ell - 0.4) ** 3,
             ufl.conditional(
-                ufl.lt(l, 1.4),
-                _A06 + (l - 0.6) + (4.0 / 3.0) * ((1.0 - l) ** 3 - 0.4**3),
-                ufl.conditional(ufl.lt(l, 1.6), _A14 + 3.0 * ((l - 1.6) ** 3 + 0.2**3), _A16),
+                ufl.lt(ell, 1.4),
+                _A06 + (ell - 0.6) + (4.0 / 3.0) * ((1.0 - ell) ** 3 - 0.4**3),
+                ufl.conditional(ufl.lt(ell, 1.6), _A14 + 3.0 * ((ell - 1.6) ** 3 + 0.2**3), _A16),
             ),
         ),
     )
 
 
-def force_length_passive(l: Expr, P1: float = 0.05, P2: float = 6.6, l_star: float = 1.4) -> Expr:
+def force_length_passive(ell: Expr, P1: float = 0.05, P2: float = 6.6, l_star: float = 1.4) -> Expr:
     """Passive force–length curve :math:`f_\\text{pas}(l)`: exponential, then C¹-linear beyond ``l_star``."""
-    lc = ufl.min_value(ufl.max_value(l, 1.0), l_star)  # keeps exp() finite in every branch
+    lc = ufl.min_value(ufl.max_value(ell, 1.0), l_star)  # keeps exp() finite in every branch
     f_star = P1 * (math.exp(P2 * (l_star - 1.0)) - 1.0)
     df_star = P1 * P2 * math.exp(P2 * (l_star - 1.0))
     return ufl.conditional(
-        ufl.le(l, 1.0),
+        ufl.le(ell, 1.0),
         0.0,
-        ufl.conditional(ufl.lt(l, l_star), P1 * (ufl.exp(P2 * (lc - 1.0)) - 1.0), f_star + df_star * (l - l_star)),
+        ufl.conditional(ufl.lt(ell, l_star), P1 * (ufl.exp(P2 * (lc - 1.0)) - 1.0), f_star + df_star * (ell - l_star)),
     )
 
 
-def force_length_passive_integral(l: Expr, P1: float = 0.05, P2: float = 6.6, l_star: float = 1.4) -> Expr:
+def force_length_passive_integral(ell: Expr, P1: float = 0.05, P2: float = 6.6, l_star: float = 1.4) -> Expr:
     r""":math:`B(l) = \int_0^l f_\text{pas}(t)\,dt` in closed form."""
-    lc = ufl.min_value(ufl.max_value(l, 1.0), l_star)
+    lc = ufl.min_value(ufl.max_value(ell, 1.0), l_star)
     e_star = math.exp(P2 * (l_star - 1.0))
     f_star = P1 * (e_star - 1.0)
     df_star = P1 * P2 * e_star
     B_star = P1 * ((e_star - 1.0) / P2 - (l_star - 1.0))
-    s = l - l_star
+    s = ell - l_star
     return ufl.conditional(
-        ufl.le(l, 1.0),
+        ufl.le(ell, 1.0),
         0.0,
         ufl.conditional(
-            ufl.lt(l, l_star),
+            ufl.lt(ell, l_star),
             P1 * ((ufl.exp(P2 * (lc - 1.0)) - 1.0) / P2 - (lc - 1.0)),
             B_star + f_star * s + 0.5 * df_star * s**2,
         ),
@@ -222,9 +224,9 @@ def isochoric_fibre_stretch(F: Expr, a0: Expr) -> Expr:
 def fibre_energy(lbar: Expr, alpha: Scalar, params: MuscleParameters) -> Expr:
     r"""Fibre energy :math:`F_2 = T_\max[\alpha A(l) + B(l)]`, :math:`l = \bar\lambda/\lambda_\text{ofl}`."""
     check_activation(alpha, "fibre_energy")
-    l = lbar / params.lambda_ofl
-    passive = force_length_passive_integral(l, params.P1, params.P2, params.l_star)
-    return params.T_max * (alpha * force_length_active_integral(l) + passive)
+    ell = lbar / params.lambda_ofl
+    passive = force_length_passive_integral(ell, params.P1, params.P2, params.l_star)
+    return params.T_max * (alpha * force_length_active_integral(ell) + passive)
 
 
 def muscle_isochoric(F: Expr, a0: Expr, alpha: Scalar, params: MuscleParameters) -> Expr:
@@ -276,9 +278,9 @@ def muscle_stress(F: Expr, a0: Expr, alpha: Scalar, params: MuscleParameters) ->
     C = right_cauchy_green(F)
     lam2 = ufl.dot(a0, C * a0)
     lbar = J ** (-1.0 / 3.0) * ufl.sqrt(lam2)
-    l = lbar / params.lambda_ofl
-    f = alpha * force_length_active(l) + force_length_passive(l, params.P1, params.P2, params.l_star)
-    sigma_f = params.T_max * f * l
+    ell = lbar / params.lambda_ofl
+    f = alpha * force_length_active(ell) + force_length_passive(ell, params.P1, params.P2, params.l_star)
+    sigma_f = params.T_max * f * ell
     p = params.K * ufl.ln(J)
     fibre = (sigma_f / lam2) * ufl.outer(F * a0, a0) - (sigma_f / 3.0) * ufl.inv(F).T
     return mooney_rivlin_isochoric_stress(F, params.c1, params.c2) + p * ufl.inv(F).T + fibre

@@ -60,9 +60,7 @@ def volumetric_law(name: str) -> VolumetricLaw:
         ParameterError: For an unknown name.
     """
     if name not in VOLUMETRIC_LAWS:
-        raise ParameterError(
-            f"unknown volumetric law {name!r} (available: {', '.join(sorted(VOLUMETRIC_LAWS))})"
-        )
+        raise ParameterError(f"unknown volumetric law {name!r} (available: {', '.join(sorted(VOLUMETRIC_LAWS))})")
     return VOLUMETRIC_LAWS[name]
 
 

@@ -5,3 +5,7 @@ from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.io import read_mesh
 
 __all__ = ["BEAM_GROUPS", "Domain", "beam_mesh", "read_mesh", "write_beam_mesh"]
+
+from hyperfem.mesh.fusiform import FUSIFORM_GROUPS, FusiformGeometry, fusiform_mesh, write_fusiform_mesh  # noqa: E402
+
+__all__ += ["FUSIFORM_GROUPS", "FusiformGeometry", "fusiform_mesh", "write_fusiform_mesh"]

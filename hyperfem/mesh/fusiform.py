@@ -72,7 +72,10 @@ class FusiformGeometry:
 
     def radius(self, z: float) -> float:
         """Belly radius :math:`r(z)`."""
-        return self.tendon_radius + (self.belly_radius - self.tendon_radius) * math.cos(math.pi * z / self.belly_length) ** 2
+        return (
+            self.tendon_radius
+            + (self.belly_radius - self.tendon_radius) * math.cos(math.pi * z / self.belly_length) ** 2
+        )
 
     @property
     def total_length(self) -> float:

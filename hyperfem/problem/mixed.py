@@ -223,7 +223,10 @@ class MixedHyperelasticProblem:
                 N = ufl.FacetNormal(mesh)
                 J = ufl.det(self.F)
                 follower.append(
-                    c * float(load.value) * J * ufl.dot(ufl.inv(self.F).T * N, v_u)
+                    c
+                    * float(load.value)
+                    * J
+                    * ufl.dot(ufl.inv(self.F).T * N, v_u)
                     * domain.ds(load.boundary, metadata=md)
                 )
             else:
