@@ -158,7 +158,7 @@ def _check(h: float, order: int) -> None:
 
 def fusiform_mesh(
     h: float = 0.004,
-    geometry: FusiformGeometry = FusiformGeometry(),
+    geometry: FusiformGeometry | None = None,
     order: int = 1,
     comm: MPI.Comm = MPI.COMM_WORLD,
 ) -> Domain:
@@ -166,7 +166,7 @@ def fusiform_mesh(
 
     Args:
         h: Target element size (metres).
-        geometry: Dimensions.
+        geometry: Dimensions (default :class:`FusiformGeometry()`).
         order: Geometric order of the tetrahedra (1 or 2).
         comm: Communicator.
 
@@ -176,6 +176,7 @@ def fusiform_mesh(
     from dolfinx.io import gmsh as dgmsh
 
     _check(h, order)
+    geometry = geometry or FusiformGeometry()
     if comm.rank == 0:
         data = _with_gmsh(
             lambda gmsh: (_build(gmsh, geometry, h, order), dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3))[1]
@@ -186,11 +187,12 @@ def fusiform_mesh(
 
 
 def write_fusiform_mesh(
-    path: str | Path, h: float = 0.004, geometry: FusiformGeometry = FusiformGeometry(), order: int = 1
+    path: str | Path, h: float = 0.004, geometry: FusiformGeometry | None = None, order: int = 1
 ) -> Path:
     """Write the fusiform mesh to a gmsh ``.msh`` (4.1, ASCII) file. Serial; call on one rank."""
     path = Path(path)
     _check(h, order)
+    geometry = geometry or FusiformGeometry()
     path.parent.mkdir(parents=True, exist_ok=True)
 
     def build(gmsh):
