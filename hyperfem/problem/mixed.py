@@ -25,6 +25,7 @@ line search.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -99,8 +100,6 @@ class _MixedDirichlet(_CompiledDirichlet):
                         f"PrescribedDisplacement on {bc.boundary!r}: component {c} outside 0..{gdim - 1}"
                     )
         self.bc = bc
-        import inspect
-
         self._parametric = callable(value) and len(inspect.signature(value).parameters) >= 2
         self._parts = []
         self.dirichlet = []
