@@ -1,0 +1,100 @@
+"""Cantilever dynamics: first bending frequency, and a short window of every demo case."""
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from dolfinx import mesh as dmesh
+
+import hyperfem as hf
+from hyperfem import dynamics as dyn
+from hyperfem.dynamics.beam_theory import euler_bernoulli_cantilever, timoshenko_cantilever
+from hyperfem.dynamics.cantilever import CASES
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_timoshenko_limits():
+    # Slender: Timoshenko -> Euler-Bernoulli; stubby 10 x 4 x 4 beam: shear lowers omega by ~10 %.
+    eb = euler_bernoulli_cantilever(1e6, 1000.0, 100.0, 1.0, 1.0)
+    assert timoshenko_cantilever(1e6, 0.3, 1000.0, 100.0, 1.0, 1.0) == pytest.approx(eb, rel=1e-4)
+    ratio = timoshenko_cantilever(1e6, 0.3, 1000.0, 10.0, 4.0, 4.0) / euler_bernoulli_cantilever(
+        1e6, 1000.0, 10.0, 4.0, 4.0
+    )
+    assert 0.85 < ratio < 0.92
+
+
+def test_cantilever_first_bending_frequency(comm):
+    """Small-amplitude free vibration of a 10 x 1 x 1 cantilever (P2, 10 x 1 x 1 boxes).
+
+    Launched with v_y = v0 (x/L)^2, Newmark (1/4, 1/2) with dt = T/40; the period is the
+    second zero crossing of the tip deflection. Measured: omega_FE / omega_Timoshenko =
+    1.013 on this mesh (1.004 on 20 x 2 x 2 boxes, see benchmarks/dynamics_frequency.py).
+    The energy line search is off: at this amplitude the energy changes of a Newton
+    step are near round-off.
+    """
+    L, H, E, nu, rho = 10.0, 1.0, 1e6, 0.3, 1000.0
+    mesh = dmesh.create_box(comm, [[0, 0, 0], [L, H, H]], [10, 1, 1], dmesh.CellType.tetrahedron)
+    domain = hf.Domain.from_locators(mesh, {"clamped": lambda x: np.isclose(x[0], 0.0)})
+    params = hf.materials.LameParameters.from_youngs(E, nu)
+    base = hf.HyperelasticProblem(
+        domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], degree=2
+    )
+    problem = dyn.IncrementalProblem(base, dyn.Newmark(), dyn.MassDensity(rho))
+    omega = timoshenko_cantilever(E, nu, rho, L, H, H)
+    T = 2 * math.pi / omega
+    v0 = 1e-3 * L * omega
+    problem.v.interpolate(lambda x: np.vstack([0 * x[0], v0 * (x[0] / L) ** 2, 0 * x[0]]))
+    diag = dyn.Diagnostics(problem, [(L, H / 2, H / 2)])
+    diag.record()
+    solver = hf.NewtonSolver(problem, energy_line_search=False)
+    dyn.integrate(problem, solver, dyn.TimeStepping(dt=T / 40, t_end=1.1 * T), on_step=diag.record)
+    t, y = diag.column("time"), diag.column("p0_y") - H / 2
+    assert np.abs(y).max() < 0.02 * L  # small amplitude
+    crossings = [
+        t[i] - y[i] * (t[i + 1] - t[i]) / (y[i + 1] - y[i])
+        for i in range(1, len(y) - 1)
+        if (y[i] > 0 >= y[i + 1]) or (y[i] < 0 <= y[i + 1])
+    ]
+    assert len(crossings) == 2
+    omega_fe = 2 * math.pi / crossings[1]
+    assert omega_fe / omega == pytest.approx(1.0, abs=0.03)
+
+
+def _demo():
+    spec = importlib.util.spec_from_file_location("demo_dynamics", ROOT / "demos" / "dynamics.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def outdir(tmp_path_factory):
+    from mpi4py import MPI
+
+    path = str(tmp_path_factory.mktemp("dynamics")) if MPI.COMM_WORLD.rank == 0 else None
+    return Path(MPI.COMM_WORLD.bcast(path, root=0))
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_demo_case_short_window(case, outdir, comm):
+    """Two adaptive steps of 0.02 s (two half steps each) of every case on the coarse beam."""
+    args = ["--case", case, "--t-end", "0.04", "--dt", "0.02", "--h", "2.0", "--quiet", "--output", str(outdir)]
+    if case != "bend":
+        args.append("--no-vtx")  # one case exercises the VTX writer
+    summary = _demo().main(args)
+    assert summary["error"] is None
+    assert summary["final_time"] == pytest.approx(0.04)
+    assert summary["min_J"] > 0.5
+    assert summary["max_inverted_cells"] == 0
+    moved = np.linalg.norm(np.subtract(summary["final_test_point"], (4.5, 1.5, 1.5)))
+    assert 0 < moved < 1.0
+    comm.Barrier()
+    assert (outdir / case / "diagnostics.csv").exists()
+    data = json.loads((outdir / case / "summary.json").read_text())
+    assert data["case"] == case
+    if case == "bend":
+        assert (outdir / case / "displacement.bp").exists()
