@@ -8,7 +8,6 @@ import math
 
 import numpy as np
 import pytest
-import ufl
 from mpi4py import MPI
 from dolfinx import mesh as dmesh
 

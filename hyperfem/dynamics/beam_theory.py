@@ -36,14 +36,14 @@ def cowper_shear_coefficient(nu: float) -> float:
 
 def euler_bernoulli_cantilever(E: float, rho: float, L: float, b: float, h: float) -> float:
     """First angular frequency (rad/s) of a clamped–free Euler–Bernoulli beam, section b × h (bending about b)."""
-    A, I = b * h, b * h**3 / 12.0
-    return BETA1_L**2 * math.sqrt(E * I / (rho * A * L**4))
+    A, Iy = b * h, b * h**3 / 12.0
+    return BETA1_L**2 * math.sqrt(E * Iy / (rho * A * L**4))
 
 
-def _determinant(omega, E, G, rho, L, A, I, kappa) -> float:
+def _determinant(omega, E, G, rho, L, A, Iy, kappa) -> float:
     kGA = kappa * G * A
     q = rho * A * omega**2 / kGA
-    a, bq, c = E * I, E * I * q + rho * I * omega**2, (rho * I * omega**2 - kGA) * q
+    a, bq, c = E * Iy, E * Iy * q + rho * Iy * omega**2, (rho * Iy * omega**2 - kGA) * q
     disc = math.sqrt(bq * bq - 4 * a * c)
     S1, S2 = (-bq + disc) / (2 * a), (-bq - disc) / (2 * a)
     l1, l2 = math.sqrt(S1), math.sqrt(-S2)
@@ -74,9 +74,9 @@ def timoshenko_cantilever(
     """
     kappa = cowper_shear_coefficient(nu) if kappa is None else kappa
     G = E / (2 * (1 + nu))
-    A, I = b * h, b * h**3 / 12.0
+    A, Iy = b * h, b * h**3 / 12.0
     w_eb = euler_bernoulli_cantilever(E, rho, L, b, h)
-    f = lambda w: _determinant(w, E, G, rho, L, A, I, kappa)  # noqa: E731
+    f = lambda w: _determinant(w, E, G, rho, L, A, Iy, kappa)  # noqa: E731
     grid = np.linspace(0.3 * w_eb, 1.05 * w_eb, 400)
     vals = [f(w) for w in grid]
     for k in range(len(grid) - 1):

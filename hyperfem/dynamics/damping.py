@@ -86,7 +86,5 @@ def reference_stiffness_form(
     V = u.function_space
     wa, wb = fem.Function(V), fem.Function(V)
     zero = fem.Function(V)
-    second = ufl.algorithms.expand_derivatives(
-        ufl.derivative(ufl.derivative(energy_internal, u, wa), u, wb)
-    )
+    second = ufl.algorithms.expand_derivatives(ufl.derivative(ufl.derivative(energy_internal, u, wa), u, wb))
     return ufl.replace(second, {u: zero, wa: a, wb: b})

@@ -48,9 +48,7 @@ def unify_cell_quadrature(form: ufl.Form, metadata: dict) -> ufl.Form:
     while the stored energy of P1 elements uses one point, so every cell
     integral of an incremental form is put on the mass rule.
     """
-    integrals = [
-        i.reconstruct(metadata=dict(metadata)) if i.integral_type() == "cell" else i for i in form.integrals()
-    ]
+    integrals = [i.reconstruct(metadata=dict(metadata)) if i.integral_type() == "cell" else i for i in form.integrals()]
     return ufl.Form(integrals)
 
 
@@ -120,9 +118,7 @@ class IncrementalProblem:
             scale = 1.0 / (1.0 - af)
             internal = scale * ufl.replace(base.energy_internal, {u: u_alpha})
             external = scale * ufl.replace(base.energy_external, {u: u_alpha})
-            follower = (
-                None if base.follower_residual is None else ufl.replace(base.follower_residual, {u: u_alpha})
-            )
+            follower = None if base.follower_residual is None else ufl.replace(base.follower_residual, {u: u_alpha})
         else:
             internal, external, follower = base.energy_internal, base.energy_external, base.follower_residual
 
@@ -159,9 +155,7 @@ class IncrementalProblem:
 
         # Diagnostics forms at the current state.
         self._kinetic = (
-            None
-            if density is None
-            else fem.form(0.5 * density.integral(ufl.dot(self.v, self.v), self.domain, degree))
+            None if density is None else fem.form(0.5 * density.integral(ufl.dot(self.v, self.v), self.domain, degree))
         )
         self._elastic = fem.form(base.energy_internal)
         self._external = fem.form(base.energy_external)
@@ -215,12 +209,12 @@ class IncrementalProblem:
             # Loads at t_{n+1-alpha_f}, boundary values at t_{n+1}.
             values = [bc.g.x.array.copy() for bc in self.base.bcs]
             self.base.set_load_factor(t_new - af * dt)
-            for bc, g in zip(self.base.bcs, values):
+            for bc, g in zip(self.base.bcs, values, strict=True):
                 bc.g.x.array[:] = g
         # Predictor u_n + dt v_n as the Newton initial guess (secant rate when quasi-static).
         self.u.x.array[:] += dt * self.v.x.array
         if self.boundary_predictor:
-            moved = any(not np.array_equal(g, bc.g.x.array) for g, bc in zip(old, self.base.bcs))
+            moved = any(not np.array_equal(g, bc.g.x.array) for g, bc in zip(old, self.base.bcs, strict=True))
             if self.domain.comm.allreduce(moved, op=MPI.LOR):
                 self._lift_boundary_increment()
 
