@@ -13,6 +13,7 @@ gmsh runs on rank 0 only; the mesh is distributed by DOLFINx.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from mpi4py import MPI
@@ -29,8 +30,8 @@ LENGTH, WIDTH, HEIGHT = 10.0, 4.0, 4.0
 
 
 def _check(h: float, order: int) -> None:
-    if not (isinstance(h, (int, float)) and h > 0):
-        raise ParameterError(f"beam mesh: element size h must be > 0, got {h!r}")
+    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+        raise ParameterError(f"beam mesh: element size h must be a finite number > 0, got {h!r}")
     if order not in (1, 2):
         raise ParameterError(f"beam mesh: order must be 1 or 2, got {order!r}")
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import itertools
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -152,7 +153,11 @@ class NewtonSolver:
         snes = self._nlp.solver
         self.snes = snes
         self._norms: list[float] = []
-        snes.setMonitor(lambda _snes, _it, norm: self._norms.append(float(norm)))
+        # Callbacks hold the solver weakly: a strong reference from the SNES
+        # back to self would be a cycle through PETSc that Python never frees
+        # (leaking the factorisation), or frees at different times per rank.
+        me = weakref.ref(self)
+        snes.setMonitor(lambda _snes, _it, norm: me()._norms.append(float(norm)))
 
         if energy_line_search is None:
             energy_line_search = problem.conservative
@@ -169,7 +174,7 @@ class NewtonSolver:
         self._ref: tuple[float, float] | None = None
         self.roundoff_accepts = 0
         if energy_line_search:
-            snes.setObjective(self._objective)
+            snes.setObjective(lambda snes_, x: me()._objective(snes_, x))
 
         self.min_jacobian = min_jacobian
         self._work = self._nlp.x.duplicate()
@@ -179,7 +184,7 @@ class NewtonSolver:
         self._cells = np.arange(imap.size_local, dtype=np.int32)
         self.inversion_cutbacks = 0
         if min_jacobian is not None:
-            snes.setLineSearchPreCheck(self._precheck)
+            snes.setLineSearchPreCheck(lambda x, y: me()._precheck(x, y))
 
     # -- callbacks -------------------------------------------------------
     def _set_state(self, x: PETSc.Vec) -> None:
