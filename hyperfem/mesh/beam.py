@@ -20,7 +20,7 @@ from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
 from hyperfem.mesh.domain import Domain
-from hyperfem.mesh.gmsh_session import gmsh_session
+from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
 
 __all__ = ["BEAM_GROUPS", "beam_mesh", "write_beam_mesh"]
@@ -73,15 +73,8 @@ def beam_mesh(h: float = 1.0, order: int = 1, comm: MPI.Comm = MPI.COMM_WORLD) -
     Returns:
         The distributed :class:`~hyperfem.mesh.Domain`.
     """
-    from dolfinx.io import gmsh as dgmsh
-
     _check(h, order)  # on every rank, before any collective call
-    if comm.rank == 0:
-        with gmsh_session() as gmsh:
-            _build_beam_model(gmsh, h, order)
-            data = dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
-    else:
-        data = dgmsh.model_to_mesh(None, comm, 0, gdim=3)
+    data = distribute_model(comm, lambda gmsh: _build_beam_model(gmsh, h, order), 3, "beam mesh")
     return domain_from_meshdata(data, f"beam_mesh(h={h}, order={order})")
 
 

@@ -26,6 +26,7 @@ from mpi4py import MPI
 
 from hyperfem.errors import MeshError, ParameterError
 from hyperfem.mesh.domain import Domain
+from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
 
 __all__ = ["FUSIFORM_GROUPS", "FusiformGeometry", "fusiform_mesh", "write_fusiform_mesh"]
@@ -132,23 +133,6 @@ def _build(gmsh, geo: FusiformGeometry, h: float, order: int) -> None:
     gmsh.model.mesh.setOrder(order)
 
 
-def _with_gmsh(func):
-    try:
-        import gmsh
-    except ImportError as exc:  # pragma: no cover - depends on the installation
-        raise MeshError("the gmsh Python module is required to generate meshes") from exc
-    initialized = gmsh.isInitialized()
-    if not initialized:
-        gmsh.initialize(interruptible=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        return func(gmsh)
-    finally:
-        gmsh.clear()
-        if not initialized:
-            gmsh.finalize()
-
-
 def _check(h: float, order: int) -> None:
     if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise ParameterError(f"fusiform mesh: element size h must be > 0, got {h!r}")
@@ -173,16 +157,9 @@ def fusiform_mesh(
     Returns:
         The distributed :class:`~hyperfem.mesh.Domain`.
     """
-    from dolfinx.io import gmsh as dgmsh
-
     _check(h, order)
     geometry = geometry or FusiformGeometry()
-    if comm.rank == 0:
-        data = _with_gmsh(
-            lambda gmsh: (_build(gmsh, geometry, h, order), dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3))[1]
-        )
-    else:
-        data = dgmsh.model_to_mesh(None, comm, 0, gdim=3)
+    data = distribute_model(comm, lambda gmsh: _build(gmsh, geometry, h, order), 3, "fusiform mesh")
     return domain_from_meshdata(data, f"fusiform_mesh(h={h}, order={order})")
 
 
@@ -195,11 +172,9 @@ def write_fusiform_mesh(
     geometry = geometry or FusiformGeometry()
     path.parent.mkdir(parents=True, exist_ok=True)
 
-    def build(gmsh):
+    with gmsh_session() as gmsh:
         _build(gmsh, geometry, h, order)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.option.setNumber("Mesh.Binary", 0)
         gmsh.write(str(path))
-
-    _with_gmsh(build)
     return path

@@ -7,7 +7,7 @@ from contextlib import contextmanager
 
 from hyperfem.errors import MeshError
 
-__all__ = ["gmsh_session"]
+__all__ = ["distribute_model", "gmsh_session"]
 
 
 @contextmanager
@@ -30,3 +30,38 @@ def gmsh_session() -> Iterator[object]:
         gmsh.clear()
         if not initialized:
             gmsh.finalize()
+
+
+def distribute_model(comm, build, gdim: int = 3, what: str = "gmsh model"):
+    """Build a gmsh model on rank 0 and distribute it as a DOLFINx mesh.
+
+    A failure while building is broadcast before the collective distribution,
+    so every rank raises the same :class:`~hyperfem.errors.MeshError` instead of
+    waiting for rank 0.
+
+    Args:
+        comm: Communicator.
+        build: ``build(gmsh)`` that adds and meshes the model (rank 0 only).
+        gdim: Geometric dimension.
+        what: Name used in error messages.
+
+    Returns:
+        :class:`dolfinx.io.gmsh.MeshData`.
+    """
+    from dolfinx.io import gmsh as dgmsh
+
+    if comm.rank == 0:
+        with gmsh_session() as gmsh:
+            error = ""
+            try:
+                build(gmsh)
+            except Exception as exc:  # gmsh raises bare Exceptions
+                error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            comm.bcast(error, root=0)
+            if error:
+                raise MeshError(f"{what}: {error}")
+            return dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
+    error = comm.bcast(None, root=0)
+    if error:
+        raise MeshError(f"{what}: {error}")
+    return dgmsh.model_to_mesh(None, comm, 0, gdim=gdim)

@@ -11,11 +11,11 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfinx.io import gmsh as dgmsh
+from dolfinx.io import gmsh as dgmsh  # noqa: F401  (MeshData type)
 
 from hyperfem.errors import MeshError, MeshFileNotFoundError
 from hyperfem.mesh.domain import Domain
-from hyperfem.mesh.gmsh_session import gmsh_session
+from hyperfem.mesh.gmsh_session import distribute_model
 
 __all__ = ["domain_from_meshdata", "read_mesh"]
 
@@ -51,27 +51,14 @@ def read_mesh(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int = 3) 
     exists = comm.allreduce(int(path.is_file()), op=MPI.MIN)
     if not exists:
         raise MeshFileNotFoundError(f"mesh file not found: {path}")
-    # Read on rank 0 and report failure to every rank *before* the collective
-    # distribution, so a bad file cannot leave the other ranks waiting.
-    error = ""
-    if comm.rank == 0:
-        with gmsh_session() as gmsh:
-            try:
-                gmsh.model.add("hyperfem")
-                gmsh.merge(str(path))
-                if gmsh.model.getDimension() < 1:
-                    error = "no mesh in file"
-            except Exception as exc:  # gmsh raises a bare Exception with its log line
-                error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            error = comm.bcast(error, root=0)
-            if not error:
-                data = dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
-    else:
-        error = comm.bcast(error, root=0)
-        if not error:
-            data = dgmsh.model_to_mesh(None, comm, 0, gdim=gdim)
-    if error:
-        raise MeshError(f"{path}: could not read gmsh mesh ({error})")
+    def load(gmsh) -> None:
+        gmsh.model.add("hyperfem")
+        gmsh.merge(str(path))
+        if gmsh.model.getDimension() < 1:
+            raise MeshError("no mesh in file")
+
+    # Read on rank 0; a failure reaches every rank before the collective distribution.
+    data = distribute_model(comm, load, gdim, f"{path}: could not read gmsh mesh")
     if not data.physical_groups:
         raise MeshError(f"{path}: the mesh has no physical groups; name boundaries and regions in gmsh")
     return domain_from_meshdata(data, str(path))

@@ -66,12 +66,16 @@ BoundaryCondition = Clamp | PrescribedDisplacement
 
 
 class _CompiledDirichlet:
-    """A Dirichlet condition bound to a function space, updated per load factor."""
+    """A Dirichlet condition bound to a displacement space, updated per load factor.
+
+    ``V`` is the displacement space, or the displacement *subspace* of a mixed
+    space (e.g. ``W.sub(0)``), in which case values live on collapsed copies.
+    """
 
     def __init__(self, bc: BoundaryCondition, V: fem.FunctionSpace, domain: Domain):
         fdim = domain.tdim - 1
         facets = domain.facets(bc.boundary)
-        gdim = V.value_shape[0] if V.value_shape else 1
+        gdim = domain.gdim
         if isinstance(bc, Clamp):
             components = list(range(gdim))
             value = None
@@ -85,25 +89,24 @@ class _CompiledDirichlet:
                     )
         self.bc = bc
         self._parametric = callable(value) and len(inspect.signature(value).parameters) >= 2
-        self._parts = []  # (full function g, working function w, component index or None)
+        self._parts = []  # (full function g, working function w, component index or None, components)
         self.dirichlet = []
         whole = components == list(range(gdim))
+        is_subspace = len(V.component()) > 0
         if whole:
-            spaces = [(V, None, None)]
+            spaces = [(V, None, V.collapse()[0] if is_subspace else None)]
         else:
             spaces = [(V.sub(c), c, V.sub(c).collapse()[0]) for c in components]
         for sub, comp, collapsed in spaces:
             W = V if collapsed is None else collapsed
             g = fem.Function(W)
             w = fem.Function(W)
-            dofs = (
-                fem.locate_dofs_topological(V, fdim, facets)
-                if collapsed is None
-                else fem.locate_dofs_topological((sub, collapsed), fdim, facets)
-            )
-            self.dirichlet.append(
-                fem.dirichletbc(w, dofs) if collapsed is None else fem.dirichletbc(w, dofs, sub)
-            )
+            if collapsed is None:
+                dofs = fem.locate_dofs_topological(V, fdim, facets)
+                self.dirichlet.append(fem.dirichletbc(w, dofs))
+            else:
+                dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
+                self.dirichlet.append(fem.dirichletbc(w, dofs, sub))
             self._parts.append((g, w, comp, components))
         if value is not None and not self._parametric:
             self._interpolate(value, None)

@@ -25,7 +25,7 @@ from hyperfem.errors import ParameterError
 from hyperfem.kinematics import deformation_gradient
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
-from hyperfem.problem.loads import BodyForce, DeadTraction, FollowerPressure, FollowerTraction, Load
+from hyperfem.problem.loads import Load, load_terms
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
 
@@ -38,15 +38,6 @@ def default_quadrature_degree(degree: int) -> int:
     P1: one point (F is constant per cell); P2 and higher: ``2 * degree``.
     """
     return 1 if degree == 1 else 2 * degree
-
-
-def _vector(value, x, gdim: int, what: str):
-    if callable(value):
-        return value(x)
-    vals = [float(v) for v in value]
-    if len(vals) != gdim:
-        raise ParameterError(f"{what}: expected {gdim} components, got {len(vals)}")
-    return ufl.as_vector(vals)
 
 
 class HyperelasticProblem:
@@ -96,7 +87,6 @@ class HyperelasticProblem:
         v = ufl.TestFunction(self.V)
         du = ufl.TrialFunction(self.V)
         self.F = deformation_gradient(self.u)
-        X = ufl.SpatialCoordinate(mesh)
 
         # Stored energy, per region.
         if callable(material):
@@ -110,34 +100,11 @@ class HyperelasticProblem:
         self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
 
         # Loads: one Constant magnitude each, scaled by its profile.
-        self._load_scales: list[tuple[fem.Constant, Load]] = []
-        external = []
-        follower = []
-        for load in loads:
-            c = fem.Constant(mesh, 0.0)
-            self._load_scales.append((c, load))
-            if isinstance(load, DeadTraction):
-                t = _vector(load.value, X, gdim, f"DeadTraction on {load.boundary!r}")
-                external.append(c * ufl.dot(t, self.u) * domain.ds(load.boundary, metadata=md))
-            elif isinstance(load, BodyForce):
-                b = _vector(load.value, X, gdim, "BodyForce")
-                external.append(c * ufl.dot(b, self.u) * domain.dx(load.region, metadata=md))
-            elif isinstance(load, FollowerTraction):
-                t = _vector(load.value, X + self.u, gdim, f"FollowerTraction on {load.boundary!r}")
-                follower.append(-c * ufl.dot(t, v) * domain.ds(load.boundary, metadata=md))
-            elif isinstance(load, FollowerPressure):
-                N = ufl.FacetNormal(mesh)
-                J = ufl.det(self.F)
-                p = float(load.value)
-                follower.append(
-                    c * p * J * ufl.dot(ufl.inv(self.F).T * N, v) * domain.ds(load.boundary, metadata=md)
-                )
-            else:
-                raise ParameterError(f"HyperelasticProblem: unknown load type {type(load).__name__}")
+        self._loads = load_terms(loads, domain, self.u, v, self.F, md, "HyperelasticProblem")
         zero = fem.Constant(mesh, 0.0) * ufl.dot(self.u, self.u) * domain.dx(metadata=md)
-        self.energy_external = sum(external) if external else zero
-        self.conservative = not follower
-        self.follower_residual = sum(follower) if follower else None
+        self.energy_external = self._loads.external if self._loads.external is not None else zero
+        self.follower_residual = self._loads.follower
+        self.conservative = self.follower_residual is None
         self.energy = self.energy_internal - self.energy_external
         self.residual = ufl.derivative(self.energy, self.u, v)
         if self.follower_residual is not None:
@@ -154,8 +121,7 @@ class HyperelasticProblem:
     def set_load_factor(self, s: float) -> None:
         """Set every load magnitude and prescribed displacement for factor/time ``s``."""
         self.load_factor = float(s)
-        for c, load in self._load_scales:
-            c.value = float(load.profile(s))
+        self._loads.set(s)
         for d in self._dirichlet:
             d.update(s)
 

@@ -19,11 +19,15 @@ Every load is multiplied by ``profile(s)`` with ``s`` the load factor or time.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+import ufl
+from dolfinx import fem
+
+from hyperfem.errors import ParameterError
 from hyperfem.problem.boundary_conditions import linear_profile
 
-__all__ = ["BodyForce", "DeadTraction", "FollowerPressure", "FollowerTraction", "Load"]
+__all__ = ["BodyForce", "DeadTraction", "FollowerPressure", "FollowerTraction", "Load", "LoadTerms", "load_terms"]
 
 
 @dataclass(frozen=True)
@@ -89,3 +93,74 @@ class BodyForce:
 
 
 Load = DeadTraction | FollowerTraction | FollowerPressure | BodyForce
+
+
+def _vector(value, x, gdim: int, what: str):
+    if callable(value):
+        return value(x)
+    vals = [float(v) for v in value]
+    if len(vals) != gdim:
+        raise ParameterError(f"{what}: expected {gdim} components, got {len(vals)}")
+    return ufl.as_vector(vals)
+
+
+@dataclass
+class LoadTerms:
+    """The UFL terms of a set of loads.
+
+    Attributes:
+        scales: One ``(Constant, load)`` per load; the constant holds ``load.profile(s)``.
+        external: Work of the dead loads (UFL scalar form), or ``None``.
+        follower: Residual of the follower loads (UFL form linear in ``v``), or ``None``.
+    """
+
+    scales: list = field(default_factory=list)
+    external: object = None
+    follower: object = None
+
+    def set(self, s: float) -> None:
+        """Set every load magnitude for load factor/time ``s``."""
+        for c, load in self.scales:
+            c.value = float(load.profile(s))
+
+
+def load_terms(loads, domain, u, v, F, metadata: dict, where: str = "problem") -> LoadTerms:
+    """Build the external-work and follower-residual terms of ``loads``.
+
+    Args:
+        loads: Sequence of loads.
+        domain: The :class:`~hyperfem.mesh.Domain` (names → measures).
+        u: Displacement (UFL; may be a block of a mixed function).
+        v: Displacement test function (UFL; may be a block).
+        F: Deformation gradient (UFL).
+        metadata: Measure metadata (quadrature degree).
+        where: Name used in error messages.
+    """
+    mesh = domain.mesh
+    gdim = domain.gdim
+    X = ufl.SpatialCoordinate(mesh)
+    terms = LoadTerms()
+    external, follower = [], []
+    md = metadata
+    for load in loads:
+        c = fem.Constant(mesh, 0.0)
+        terms.scales.append((c, load))
+        if isinstance(load, DeadTraction):
+            t = _vector(load.value, X, gdim, f"DeadTraction on {load.boundary!r}")
+            external.append(c * ufl.dot(t, u) * domain.ds(load.boundary, metadata=md))
+        elif isinstance(load, BodyForce):
+            b = _vector(load.value, X, gdim, "BodyForce")
+            external.append(c * ufl.dot(b, u) * domain.dx(load.region, metadata=md))
+        elif isinstance(load, FollowerTraction):
+            t = _vector(load.value, X + u, gdim, f"FollowerTraction on {load.boundary!r}")
+            follower.append(-c * ufl.dot(t, v) * domain.ds(load.boundary, metadata=md))
+        elif isinstance(load, FollowerPressure):
+            N = ufl.FacetNormal(mesh)
+            J = ufl.det(F)
+            p = float(load.value)
+            follower.append(c * p * J * ufl.dot(ufl.inv(F).T * N, v) * domain.ds(load.boundary, metadata=md))
+        else:
+            raise ParameterError(f"{where}: unknown load type {type(load).__name__}")
+    terms.external = sum(external) if external else None
+    terms.follower = sum(follower) if follower else None
+    return terms

@@ -25,7 +25,6 @@ line search.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -38,9 +37,9 @@ from hyperfem.errors import ParameterError
 from hyperfem.materials.parameters import check_positive
 from hyperfem.materials.volumetric import volumetric_law
 from hyperfem.mesh.domain import Domain
-from hyperfem.problem.boundary_conditions import BoundaryCondition, Clamp, _CompiledDirichlet
+from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
-from hyperfem.problem.loads import BodyForce, DeadTraction, FollowerPressure, FollowerTraction, Load
+from hyperfem.problem.loads import Load, load_terms
 
 __all__ = ["MixedHyperelasticProblem", "ReactionForce", "SplitEnergy", "solid_problem"]
 
@@ -79,50 +78,6 @@ class SplitEnergy:
                 "use 'log' or 'quadratic' with the mixed formulation"
             )
         return self.isochoric(F) + p * g(ufl.det(F)) - p**2 / (2.0 * self.bulk_modulus)
-
-
-class _MixedDirichlet(_CompiledDirichlet):
-    """A displacement Dirichlet condition on the displacement block of a mixed space."""
-
-    def __init__(self, bc: BoundaryCondition, W: fem.FunctionSpace, domain: Domain):  # noqa: D107
-        fdim = domain.tdim - 1
-        facets = domain.facets(bc.boundary)
-        Wu = W.sub(0)
-        gdim = domain.gdim
-        if isinstance(bc, Clamp):
-            components, value = list(range(gdim)), None
-        else:
-            components = list(range(gdim)) if bc.components is None else [int(c) for c in bc.components]
-            value = bc.value
-            for c in components:
-                if not 0 <= c < gdim:
-                    raise ParameterError(
-                        f"PrescribedDisplacement on {bc.boundary!r}: component {c} outside 0..{gdim - 1}"
-                    )
-        self.bc = bc
-        self._parametric = callable(value) and len(inspect.signature(value).parameters) >= 2
-        self._parts = []
-        self.dirichlet = []
-        whole = components == list(range(gdim))
-        subs = [(Wu, None)] if whole else [(Wu.sub(c), c) for c in components]
-        for sub, comp in subs:
-            collapsed = sub.collapse()[0]
-            g = fem.Function(collapsed)
-            w = fem.Function(collapsed)
-            dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
-            self.dirichlet.append(fem.dirichletbc(w, dofs, sub))
-            self._parts.append((g, w, comp, components))
-        if value is not None and not self._parametric:
-            self._interpolate(value, None)
-
-
-def _vector(value, x, gdim: int, what: str):
-    if callable(value):
-        return value(x)
-    vals = [float(v) for v in value]
-    if len(vals) != gdim:
-        raise ParameterError(f"{what}: expected {gdim} components, got {len(vals)}")
-    return ufl.as_vector(vals)
 
 
 class MixedHyperelasticProblem:
@@ -190,7 +145,6 @@ class MixedHyperelasticProblem:
         dw = ufl.TrialFunction(self.W)
         self.p = p
         self.F = ufl.Identity(gdim) + ufl.grad(u)
-        X = ufl.SpatialCoordinate(mesh)
 
         if isinstance(material, SplitEnergy):
             self.energy_internal = material.mixed_energy(self.F, p) * domain.dx(metadata=md)
@@ -201,38 +155,13 @@ class MixedHyperelasticProblem:
                 m.mixed_energy(self.F, p) * domain.dx(name, metadata=md) for name, m in material.items()
             )
         self.material = material
-        self._dirichlet = [_MixedDirichlet(bc, self.W, domain) for bc in bcs]
+        self._dirichlet = [_CompiledDirichlet(bc, self.W.sub(0), domain) for bc in bcs]
         self._updaters = list(updaters)
 
-        self._load_scales: list[tuple[fem.Constant, Load]] = []
-        external, follower = [], []
-        for load in loads:
-            c = fem.Constant(mesh, 0.0)
-            self._load_scales.append((c, load))
-            if isinstance(load, DeadTraction):
-                t = _vector(load.value, X, gdim, f"DeadTraction on {load.boundary!r}")
-                external.append(c * ufl.dot(t, u) * domain.ds(load.boundary, metadata=md))
-            elif isinstance(load, BodyForce):
-                b = _vector(load.value, X, gdim, "BodyForce")
-                external.append(c * ufl.dot(b, u) * domain.dx(load.region, metadata=md))
-            elif isinstance(load, FollowerTraction):
-                t = _vector(load.value, X + u, gdim, f"FollowerTraction on {load.boundary!r}")
-                follower.append(-c * ufl.dot(t, v_u) * domain.ds(load.boundary, metadata=md))
-            elif isinstance(load, FollowerPressure):
-                N = ufl.FacetNormal(mesh)
-                J = ufl.det(self.F)
-                follower.append(
-                    c
-                    * float(load.value)
-                    * J
-                    * ufl.dot(ufl.inv(self.F).T * N, v_u)
-                    * domain.ds(load.boundary, metadata=md)
-                )
-            else:
-                raise ParameterError(f"MixedHyperelasticProblem: unknown load type {type(load).__name__}")
+        self._loads = load_terms(loads, domain, u, v_u, self.F, md, "MixedHyperelasticProblem")
         zero = fem.Constant(mesh, 0.0) * ufl.dot(u, u) * domain.dx(metadata=md)
-        self.energy_external = sum(external) if external else zero
-        self.follower_residual = sum(follower) if follower else None
+        self.energy_external = self._loads.external if self._loads.external is not None else zero
+        self.follower_residual = self._loads.follower
         # Pi is stationary, not minimal, in p: never use it as a line-search merit.
         self.conservative = False
         self.energy = self.energy_internal - self.energy_external
@@ -251,8 +180,7 @@ class MixedHyperelasticProblem:
     def set_load_factor(self, s: float) -> None:
         """Set loads, prescribed displacements and updaters (activations) for factor/time ``s``."""
         self.load_factor = float(s)
-        for c, load in self._load_scales:
-            c.value = float(load.profile(s))
+        self._loads.set(s)
         for d in self._dirichlet:
             d.update(s)
         for updater in self._updaters:
