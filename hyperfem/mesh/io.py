@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfinx.io import gmsh as dgmsh  # noqa: F401  (MeshData type)
+from dolfinx.io import gmsh as dgmsh
 
 from hyperfem.errors import MeshError, MeshFileNotFoundError
 from hyperfem.mesh.domain import Domain
