@@ -31,54 +31,36 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import ufl
-
+from hyperfem.cases.cantilever import TEST_POINT, CantileverSpec, bend_load, twist_load
 from hyperfem.dynamics.motion import Ramp, Steady, rotating_surface
 from hyperfem.errors import ParameterError
 from hyperfem.materials.neo_hookean import neo_hookean
-from hyperfem.materials.parameters import LameParameters
 from hyperfem.mesh.beam import LENGTH
-from hyperfem.problem import Clamp, DeadTraction, FollowerTraction, HyperelasticProblem, PrescribedDisplacement
+from hyperfem.problem import Clamp, HyperelasticProblem, PrescribedDisplacement
 
 __all__ = ["CASES", "TEST_POINT", "CantileverDynamics", "cantilever_problem"]
 
 CASES = ("bend", "twist", "i-bend", "i-twist", "bc-bend", "bc-twist", "squeeze", "stretch")
-TEST_POINT = (4.5, 1.5, 1.5)
 
 
 @dataclass(frozen=True)
-class CantileverDynamics:
-    """Data of the experiments (SI units).
+class CantileverDynamics(CantileverSpec):
+    """Data of the experiments (SI units): the material of
+    :class:`~hyperfem.cases.CantileverSpec` plus the time data.
 
     Attributes:
-        E, nu: Young's modulus (Pa) and Poisson's ratio.
-        rho: Density (kg/m³).
-        damping: Viscous (mass-proportional) damping :math:`c` (1/s).
         t_end: Simulated time (s).
         ramp_time: Duration of the ramps and prescribed motions (s).
-        traction: Bend traction magnitude (Pa).
-        twist: Twist traction coefficient (Pa/m).
         factor: Final multiple of the I-ramps.
     """
 
-    E: float = 1.0e6
-    nu: float = 0.3
-    rho: float = 1000.0
-    damping: float = 4.0e-4
     t_end: float = 3.0
     ramp_time: float = 1.0
-    traction: float = 5.0e3
-    twist: float = 5.0e3
     factor: float = 5.0
-
-    @property
-    def lame(self) -> LameParameters:
-        """Lamé parameters."""
-        return LameParameters.from_youngs(self.E, self.nu)
 
 
 def cantilever_problem(
-    case: str, domain, spec: CantileverDynamics = CantileverDynamics(), degree: int = 1
+    case: str, domain, spec: CantileverDynamics | None = None, degree: int = 1
 ) -> tuple[HyperelasticProblem, list[float]]:
     """Build the hyperelastic problem of one case with time as the load factor.
 
@@ -93,6 +75,7 @@ def cantilever_problem(
     """
     if case not in CASES:
         raise ParameterError(f"cantilever_problem: unknown case {case!r} (choose from {', '.join(CASES)})")
+    spec = CantileverDynamics() if spec is None else spec
     params = spec.lame
     T = spec.ramp_time
     steady = Steady()
@@ -101,13 +84,10 @@ def cantilever_problem(
     loads: list = []
     must_hit: list[float] = []
 
-    def twist_traction(x):
-        return spec.twist * ufl.as_vector((0.0, x[2], -x[1]))
-
     if case in ("bend", "i-bend"):
-        loads.append(DeadTraction("free_end", (0.0, -spec.traction, 0.0), profile=steady if case == "bend" else ramp))
+        loads.append(bend_load(profile=steady if case == "bend" else ramp))
     elif case in ("twist", "i-twist"):
-        loads.append(FollowerTraction("free_end", twist_traction, profile=steady if case == "twist" else ramp))
+        loads.append(twist_load(profile=steady if case == "twist" else ramp))
     elif case == "bc-bend":
         bcs.append(rotating_surface("free_end", (0.0, 1.0, 0.0), Ramp(T, final=math.pi / 2), (LENGTH / 2, 0.0, 0.0)))
     elif case == "bc-twist":
