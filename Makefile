@@ -71,6 +71,8 @@ demo: bootstrap
 demos: bootstrap
 	$(PY) demos/bend.py
 	$(PY) demos/twist.py
+	$(PY) demos/muscle.py
+	$(PY) demos/dynamics.py --case bend --t-end 0.5
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
@@ -87,6 +89,7 @@ meshes: bootstrap
 
 benchmark: bootstrap
 	$(PY) benchmarks/energy_line_search.py
+	$(PY) benchmarks/dynamics_frequency.py
 
 clean:
 	rm -rf output .pytest_cache
