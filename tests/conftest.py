@@ -9,6 +9,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 from mpi4py import MPI  # noqa: E402
 
 import pytest  # noqa: E402
+from dolfinx import jit  # noqa: E402
+
+# On a cold JIT cache under load, waiting 10 s for another process's compile
+# of the same form can time out spuriously; allow two minutes.
+jit.DOLFINX_DEFAULT_JIT_OPTIONS["timeout"] = (120, "Timeout for JIT compilation")
 
 
 def pytest_collection_modifyitems(config, items):
