@@ -1,21 +1,25 @@
 """Boundary-value problems: energies, loads and Dirichlet conditions by name."""
 
+from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.boundary_conditions import Clamp, PrescribedDisplacement, linear_profile
 from hyperfem.problem.hyperelastic import EnergyDensity, HyperelasticProblem, default_quadrature_degree
 from hyperfem.problem.loads import BodyForce, DeadTraction, FollowerPressure, FollowerTraction
+from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, SplitEnergy, solid_problem
 
 __all__ = [
     "BodyForce",
     "Clamp",
     "DeadTraction",
     "EnergyDensity",
+    "EnergyProblem",
     "FollowerPressure",
     "FollowerTraction",
     "HyperelasticProblem",
+    "MixedHyperelasticProblem",
     "PrescribedDisplacement",
+    "ReactionForce",
+    "SplitEnergy",
     "default_quadrature_degree",
     "linear_profile",
+    "solid_problem",
 ]
-from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, SplitEnergy, solid_problem  # noqa: E402
-
-__all__ += ["MixedHyperelasticProblem", "ReactionForce", "SplitEnergy", "solid_problem"]

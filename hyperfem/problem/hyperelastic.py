@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 
-import numpy as np
 import ufl
 from dolfinx import fem
 
@@ -25,7 +24,8 @@ from hyperfem.errors import ParameterError
 from hyperfem.kinematics import deformation_gradient
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
-from hyperfem.problem.loads import Load, load_terms
+from hyperfem.problem.base import EnergyProblem
+from hyperfem.problem.loads import Load
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
 
@@ -40,7 +40,7 @@ def default_quadrature_degree(degree: int) -> int:
     return 1 if degree == 1 else 2 * degree
 
 
-class HyperelasticProblem:
+class HyperelasticProblem(EnergyProblem):
     """Energy, residual and tangent of a hyperelastic body.
 
     Args:
@@ -100,39 +100,4 @@ class HyperelasticProblem:
         self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
 
         # Loads: one Constant magnitude each, scaled by its profile.
-        self._loads = load_terms(loads, domain, self.u, v, self.F, md, "HyperelasticProblem")
-        zero = fem.Constant(mesh, 0.0) * ufl.dot(self.u, self.u) * domain.dx(metadata=md)
-        self.energy_external = self._loads.external if self._loads.external is not None else zero
-        self.follower_residual = self._loads.follower
-        self.conservative = self.follower_residual is None
-        self.energy = self.energy_internal - self.energy_external
-        self.residual = ufl.derivative(self.energy, self.u, v)
-        if self.follower_residual is not None:
-            self.residual = self.residual + self.follower_residual
-        self.jacobian = ufl.derivative(self.residual, self.u, du)
-        self.load_factor = 0.0
-        self.set_load_factor(0.0)
-
-    @property
-    def bcs(self) -> list[fem.DirichletBC]:
-        """The DOLFINx Dirichlet conditions (values follow :meth:`set_load_factor`)."""
-        return [d for c in self._dirichlet for d in c.dirichlet]
-
-    def set_load_factor(self, s: float) -> None:
-        """Set every load magnitude and prescribed displacement for factor/time ``s``."""
-        self.load_factor = float(s)
-        self._loads.set(s)
-        for d in self._dirichlet:
-            d.update(s)
-
-    def volume_jacobian(self) -> ufl.core.expr.Expr:
-        """:math:`J = \\det F` as a UFL expression (for inversion checks and output)."""
-        return ufl.det(self.F)
-
-    def quadrature_points(self) -> np.ndarray:
-        """Reference quadrature points of the volume rule (for :class:`dolfinx.fem.Expression`)."""
-        import basix
-
-        cell = self.domain.mesh.basix_cell()
-        pts, _ = basix.make_quadrature(cell, self.quadrature_degree)
-        return pts
+        self._derive_forms(self.u, v, v, du, loads)

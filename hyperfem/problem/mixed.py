@@ -39,7 +39,8 @@ from hyperfem.materials.volumetric import volumetric_law
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
-from hyperfem.problem.loads import Load, load_terms
+from hyperfem.problem.base import EnergyProblem
+from hyperfem.problem.loads import Load
 
 __all__ = ["MixedHyperelasticProblem", "ReactionForce", "SplitEnergy", "solid_problem"]
 
@@ -80,7 +81,7 @@ class SplitEnergy:
         return self.isochoric(F) + p * g(ufl.det(F)) - p**2 / (2.0 * self.bulk_modulus)
 
 
-class MixedHyperelasticProblem:
+class MixedHyperelasticProblem(EnergyProblem):
     """Taylor–Hood u–p problem of a nearly incompressible body.
 
     Args:
@@ -156,52 +157,15 @@ class MixedHyperelasticProblem:
             )
         self.material = material
         self._dirichlet = [_CompiledDirichlet(bc, self.W.sub(0), domain) for bc in bcs]
-        self._updaters = list(updaters)
 
-        self._loads = load_terms(loads, domain, u, v_u, self.F, md, "MixedHyperelasticProblem")
-        zero = fem.Constant(mesh, 0.0) * ufl.dot(u, u) * domain.dx(metadata=md)
-        self.energy_external = self._loads.external if self._loads.external is not None else zero
-        self.follower_residual = self._loads.follower
         # Pi is stationary, not minimal, in p: never use it as a line-search merit.
-        self.conservative = False
-        self.energy = self.energy_internal - self.energy_external
-        self.residual = ufl.derivative(self.energy, self.u, v)
-        if self.follower_residual is not None:
-            self.residual = self.residual + self.follower_residual
-        self.jacobian = ufl.derivative(self.residual, self.u, dw)
-        self.load_factor = 0.0
-        self.set_load_factor(0.0)
-
-    @property
-    def bcs(self) -> list[fem.DirichletBC]:
-        """The DOLFINx Dirichlet conditions on the displacement block."""
-        return [d for c in self._dirichlet for d in c.dirichlet]
-
-    def set_load_factor(self, s: float) -> None:
-        """Set loads, prescribed displacements and updaters (activations) for factor/time ``s``."""
-        self.load_factor = float(s)
-        self._loads.set(s)
-        for d in self._dirichlet:
-            d.update(s)
-        for updater in self._updaters:
-            updater.update(s)
+        self._derive_forms(u, v, v_u, dw, loads, conservative=False, updaters=updaters)
 
     def update_fields(self) -> tuple[fem.Function, fem.Function]:
         """Copy the displacement and pressure blocks into :attr:`displacement`, :attr:`pressure`."""
         self.displacement.x.array[:] = self.u.x.array[self._u_dofs]
         self.pressure.x.array[:] = self.u.x.array[self._p_dofs]
         return self.displacement, self.pressure
-
-    def volume_jacobian(self) -> Expr:
-        """:math:`J = \\det F` as a UFL expression."""
-        return ufl.det(self.F)
-
-    def quadrature_points(self) -> np.ndarray:
-        """Reference quadrature points of the volume rule."""
-        import basix
-
-        pts, _ = basix.make_quadrature(self.domain.mesh.basix_cell(), self.quadrature_degree)
-        return pts
 
 
 def solid_problem(

@@ -1,0 +1,86 @@
+r"""What every energy-based problem shares: loads, residual, tangent, load factor.
+
+Given the stored energy form, :class:`EnergyProblem` adds the loads
+(:func:`~hyperfem.problem.loads.load_terms`) and derives
+
+.. math::
+    R = \frac{\partial (\Pi_\text{int} - W_\text{dead})}{\partial w}[v] + R_\text{follower},
+    \qquad K = \frac{\partial R}{\partial w}[\delta w]
+
+with ``ufl.derivative``; :meth:`set_load_factor` moves loads, prescribed
+displacements and any *updaters* (e.g. muscle activation) to factor/time ``s``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from hyperfem.problem.loads import Load, load_terms
+
+__all__ = ["EnergyProblem"]
+
+
+class EnergyProblem:
+    """Base of :class:`~hyperfem.problem.HyperelasticProblem` and the mixed problem.
+
+    Subclasses set ``domain``, ``u``, ``F``, ``quadrature_degree``,
+    ``energy_internal`` and ``_dirichlet``, then call :meth:`_derive_forms`.
+    """
+
+    _updaters: list = []
+
+    def _derive_forms(
+        self,
+        displacement,
+        test,
+        test_displacement,
+        trial,
+        loads: Sequence[Load],
+        conservative: bool | None = None,
+        updaters: Iterable = (),
+    ) -> None:
+        md = {"quadrature_degree": self.quadrature_degree}
+        domain = self.domain
+        where = type(self).__name__
+        self._updaters = list(updaters)
+        self._loads = load_terms(loads, domain, displacement, test_displacement, self.F, md, where)
+        zero = fem.Constant(domain.mesh, 0.0) * ufl.dot(displacement, displacement) * domain.dx(metadata=md)
+        self.energy_external = self._loads.external if self._loads.external is not None else zero
+        self.follower_residual = self._loads.follower
+        self.conservative = (self.follower_residual is None) if conservative is None else conservative
+        self.energy = self.energy_internal - self.energy_external
+        self.residual = ufl.derivative(self.energy, self.u, test)
+        if self.follower_residual is not None:
+            self.residual = self.residual + self.follower_residual
+        self.jacobian = ufl.derivative(self.residual, self.u, trial)
+        self.load_factor = 0.0
+        self.set_load_factor(0.0)
+
+    @property
+    def bcs(self) -> list[fem.DirichletBC]:
+        """The DOLFINx Dirichlet conditions (values follow :meth:`set_load_factor`)."""
+        return [d for c in self._dirichlet for d in c.dirichlet]
+
+    def set_load_factor(self, s: float) -> None:
+        """Set loads, prescribed displacements and updaters for load factor/time ``s``."""
+        self.load_factor = float(s)
+        self._loads.set(s)
+        for d in self._dirichlet:
+            d.update(s)
+        for updater in self._updaters:
+            updater.update(s)
+
+    def volume_jacobian(self) -> ufl.core.expr.Expr:
+        """:math:`J = \\det F` as a UFL expression (for inversion checks and output)."""
+        return ufl.det(self.F)
+
+    def quadrature_points(self) -> np.ndarray:
+        """Reference quadrature points of the volume rule (for :class:`dolfinx.fem.Expression`)."""
+        import basix
+
+        pts, _ = basix.make_quadrature(self.domain.mesh.basix_cell(), self.quadrature_degree)
+        return pts
