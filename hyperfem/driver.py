@@ -124,7 +124,7 @@ def format_summary(summary: dict) -> str:
     if "probe_displacement" in summary:
         for p, d in zip(summary["probe_points"], summary["probe_displacement"], strict=True):
             lines.append(f"  displacement at {tuple(p)}: {np.array2string(np.asarray(d), precision=6)} m")
-    lines.append(f"  wall time: {summary['wall_time']:.2f} s")
+    lines.append(f"  wall time (load stepping, after form compilation): {summary['wall_time']:.2f} s")
     lines.append(f"  output: {summary['files']['vtx']} (ParaView), {summary['files']['summary']}")
     return "\n".join(lines)
 
