@@ -48,7 +48,6 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -59,7 +58,9 @@ from dolfinx.io import VTXWriter  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
+from hyperfem.cli import ArgumentParser, nonnegative_float, positive_float, positive_int, run, unit_interval  # noqa: E402
 from hyperfem.dynamics.cantilever import CASES, TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
+from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 
 SCHEMES = {
     "newmark": lambda a: dyn.Newmark(),
@@ -69,24 +70,29 @@ SCHEMES = {
 }
 
 
-def parse(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description="Dynamic cantilever experiments (seed 003, §5.7)")
+def parse(argv=None):
+    p = ArgumentParser(description="Dynamic cantilever experiments (seed 003, §5.7)")
     p.add_argument("--case", choices=CASES, default="bend")
-    p.add_argument("--t-end", type=float, default=3.0, help="simulated time (s)")
-    p.add_argument("--dt", type=float, default=0.02, help="initial time step (s)")
-    p.add_argument("--dt-max", type=float, default=None, help="largest time step (s)")
-    p.add_argument("--h", type=float, default=1.0, help="element size of the beam mesh (m)")
-    p.add_argument("--degree", type=int, default=1, help="displacement degree")
+    p.add_argument("--t-end", type=positive_float, default=3.0, help="simulated time (s)")
+    p.add_argument("--dt", type=positive_float, default=0.02, help="initial time step (s)")
+    p.add_argument("--dt-max", type=positive_float, default=None, help="largest time step (s)")
+    p.add_argument("--h", type=positive_float, default=1.0, help="element size of the beam mesh (m)")
+    p.add_argument("--degree", type=positive_int, default=1, help="displacement degree")
     p.add_argument("--scheme", choices=sorted(SCHEMES), default="newmark")
-    p.add_argument("--rho-inf", type=float, default=0.8, help="generalized-alpha spectral radius")
+    p.add_argument("--rho-inf", type=unit_interval, default=0.8, help="generalized-alpha spectral radius in [0, 1]")
     p.add_argument("--lumped", action="store_true", help="lumped (vertex-rule) mass, P1 only")
     p.add_argument("--fixed", action="store_true", help="fixed step (cutback only), no step doubling")
-    p.add_argument("--tol", type=float, default=1e-3, help="step-doubling tolerance on nodal positions (m)")
-    p.add_argument("--output-every", type=float, default=0.1, help="VTX output interval (s)")
+    p.add_argument("--tol", type=positive_float, default=1e-3, help="step-doubling tolerance on nodal positions (m)")
+    p.add_argument("--output-every", type=nonnegative_float, default=0.1, help="VTX output interval (s), 0 for none")
     p.add_argument("--output", type=Path, default=Path("output") / "dynamics", help="output folder")
     p.add_argument("--no-vtx", action="store_true", help="skip the VTX time series")
     p.add_argument("--quiet", action="store_true")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if args.dt_max is not None and args.dt_max < args.dt:
+        p.error(f"argument --dt-max: must be >= --dt ({args.dt:g}), got {args.dt_max:g}")
+    if args.lumped and args.degree != 1:
+        p.error("argument --lumped: the lumped mass needs --degree 1")
+    return args
 
 
 # %% [markdown]
@@ -108,6 +114,7 @@ def parse(argv=None) -> argparse.Namespace:
 def main(argv=None) -> dict:
     args = parse(argv)
     comm = MPI.COMM_WORLD
+    out = ensure_output_dir(args.output / args.case, comm)  # fail on every rank before any work
     wall0 = time.perf_counter()
     spec = CantileverDynamics()
     domain = hf.beam_mesh(h=args.h, comm=comm)
@@ -121,7 +128,6 @@ def main(argv=None) -> dict:
     options = {"snes_rtol": 1e-8, "snes_atol": 1e-8, "snes_stol": 1e-10, "snes_max_it": 25}
     solver = hf.NewtonSolver(problem, options)
     problem.initial_acceleration()
-    out = args.output / args.case
     diagnostics = dyn.Diagnostics(problem, [TEST_POINT])
     diagnostics.record()
 
@@ -135,8 +141,6 @@ def main(argv=None) -> dict:
     output_times = [k * args.output_every for k in range(1, n_out + 1)]
     writer = None
     if not args.no_vtx:
-        out.mkdir(parents=True, exist_ok=True) if comm.rank == 0 else None
-        comm.Barrier()
         writer = VTXWriter(comm, out / "displacement.bp", [problem.u, problem.v], engine="BP4")
         writer.write(0.0)
     pending = list(output_times)
@@ -195,11 +199,9 @@ def main(argv=None) -> dict:
         "final_test_point": [diagnostics.rows[-1][f"p0_{a}"] for a in "xyz"],
     }
     diagnostics.write_csv(out / "diagnostics.csv")
-    diagnostics.write_json(out / "summary.json", {k: v for k, v in summary.items() if k not in ("steps",)})
-    if comm.rank == 0:
-        (out / "summary.json").write_text(json.dumps(summary, indent=2))
-        if not args.quiet:
-            print(json.dumps(summary, indent=2))
+    write_json(out / "summary.json", summary, comm)
+    if comm.rank == 0 and not args.quiet:
+        print(json.dumps(summary, indent=2))
     return summary
 
 
@@ -209,4 +211,4 @@ def main(argv=None) -> dict:
 
 # %%
 if __name__ == "__main__":
-    main()
+    run(main)

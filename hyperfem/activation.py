@@ -15,6 +15,7 @@ outside :math:`[0, 1]` raise :class:`~hyperfem.errors.ParameterError`.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Iterable
 
 from mpi4py import MPI
@@ -29,6 +30,8 @@ __all__ = ["ActivatedProblem", "Activation"]
 
 
 def _check_range(value: float, what: str) -> float:
+    if not (isinstance(value, numbers.Real) and not isinstance(value, bool)):
+        raise ParameterError(f"{what}: activation must be a number in [0, 1], got {value!r}")
     value = float(value)
     if not (math.isfinite(value) and 0.0 <= value <= 1.0):
         raise ParameterError(f"{what}: activation must lie in [0, 1], got {value!r}")
@@ -66,11 +69,25 @@ class Activation:
         if field is not None:
             if isinstance(field, fem.Function):
                 self.field = field
-            else:
+            elif callable(field):
                 V = fem.functionspace(mesh, ("DG", 0))
                 self.field = fem.Function(V, name=name)
-                self.field.interpolate(lambda x: np.asarray(field(x), dtype=float))
+                error = ""
+                try:  # the callable runs on each rank's own cells: agree before raising
+                    self.field.interpolate(lambda x: np.asarray(field(x), dtype=float))
+                except Exception as exc:  # noqa: BLE001 - user callable
+                    error = (str(exc).splitlines() or [type(exc).__name__])[0]
+                errors = [e for e in mesh.comm.allgather(error) if e]
+                if errors:
+                    raise ParameterError(f"{name}: evaluating the activation field failed: {errors[0]}")
+            else:
+                raise ParameterError(
+                    f"{name}: field must be a dolfinx Function or a callable field(x), got {type(field).__name__}"
+                )
             arr = self.field.x.array
+            nonfinite = mesh.comm.allreduce(int(np.count_nonzero(~np.isfinite(arr))), op=MPI.SUM)
+            if nonfinite:
+                raise ParameterError(f"{name}: activation field has {nonfinite} non-finite value(s) (nan or inf)")
             local = (float(arr.min()), float(-arr.max())) if arr.size else (np.inf, np.inf)
             lo, neg_hi = (mesh.comm.allreduce(v, op=MPI.MIN) for v in local)
             if not (lo >= 0.0 and -neg_hi <= 1.0):

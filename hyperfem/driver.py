@@ -17,7 +17,7 @@ from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError
 from hyperfem.io.probes import PointProbe
-from hyperfem.io.results import VTXOutput, write_json
+from hyperfem.io.results import VTXOutput, ensure_output_dir, write_json
 from hyperfem.solver.newton import NewtonSolver
 from hyperfem.solver.stepping import LoadStepping, StepRecord, solve_quasistatic
 
@@ -48,10 +48,14 @@ def run_quasistatic(
         The summary dictionary (also written as JSON). On
         :class:`~hyperfem.errors.ConvergenceError` the summary of the completed
         steps is written with ``"completed": false`` before re-raising.
+
+    Raises:
+        OutputError: If ``output_dir`` cannot be created or written (every
+            rank, before the first step).
     """
     problem = solver.problem
     comm = problem.domain.comm
-    output_dir = Path(output_dir)
+    output_dir = ensure_output_dir(Path(output_dir), comm)
     u = problem.u
     probe = PointProbe(problem.domain.mesh, probe_points) if len(probe_points) else None
     vtx_path = output_dir / f"{name}.bp"
@@ -124,7 +128,8 @@ def format_summary(summary: dict) -> str:
     if "probe_displacement" in summary:
         for p, d in zip(summary["probe_points"], summary["probe_displacement"], strict=True):
             lines.append(f"  displacement at {tuple(p)}: {np.array2string(np.asarray(d), precision=6)} m")
+    if "convergence" in summary:
+        lines.append(f"  convergence: {summary['convergence']}")
     lines.append(f"  wall time (load stepping, after form compilation): {summary['wall_time']:.2f} s")
     lines.append(f"  output: {summary['files']['vtx']} (ParaView), {summary['files']['summary']}")
     return "\n".join(lines)
-

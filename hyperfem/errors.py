@@ -13,6 +13,7 @@ __all__ = [
     "HyperfemError",
     "MeshError",
     "MeshFileNotFoundError",
+    "OutputError",
     "ParameterError",
     "UnknownGroupError",
 ]
@@ -32,6 +33,17 @@ class MeshError(HyperfemError):
 
 class MeshFileNotFoundError(MeshError, FileNotFoundError):
     """The mesh file does not exist."""
+
+
+class OutputError(HyperfemError, OSError):
+    """An output folder or file cannot be created or written.
+
+    Raised on every rank (the check is collective), before any result is computed
+    where possible.
+    """
+
+    def __str__(self) -> str:  # OSError would format (errno, strerror)
+        return str(self.args[0]) if self.args else ""
 
 
 class UnknownGroupError(MeshError, LookupError):

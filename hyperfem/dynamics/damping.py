@@ -23,13 +23,13 @@ which keeps the energy line search available.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import ufl
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
+from hyperfem.materials.parameters import is_finite_number
 
 __all__ = ["RayleighDamping", "reference_stiffness_form", "viscous_damping"]
 
@@ -49,7 +49,7 @@ class RayleighDamping:
     def __post_init__(self) -> None:
         for name in ("alpha", "beta"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            if not (is_finite_number(v) and v >= 0):
                 raise ParameterError(f"RayleighDamping: {name} must be a finite number >= 0, got {v!r}")
 
     @classmethod
@@ -58,8 +58,12 @@ class RayleighDamping:
 
         Solves :math:`\zeta_i = \alpha/(2\omega_i) + \beta\omega_i/2`, :math:`i = 1, 2`.
         """
+        where = "RayleighDamping.from_damping_ratios"
+        for name, v in (("zeta1", zeta1), ("omega1", omega1), ("zeta2", zeta2), ("omega2", omega2)):
+            if not is_finite_number(v):
+                raise ParameterError(f"{where}: {name} must be a finite number, got {v!r}")
         if omega1 <= 0 or omega2 <= 0 or omega1 == omega2:
-            raise ParameterError("RayleighDamping.from_damping_ratios: need distinct positive frequencies")
+            raise ParameterError(f"{where}: need distinct positive frequencies, got {omega1!r}, {omega2!r}")
         det = omega2 / omega1 - omega1 / omega2
         alpha = 2.0 * (zeta1 * omega2 - zeta2 * omega1) / det
         beta = 2.0 * (zeta2 / omega1 - zeta1 / omega2) / det

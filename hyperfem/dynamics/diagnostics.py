@@ -28,6 +28,8 @@ from mpi4py import MPI
 from dolfinx import fem, geometry
 
 from hyperfem.dynamics.stepping import TimeStepRecord
+from hyperfem.errors import ParameterError
+from hyperfem.io.results import on_rank0
 
 __all__ = ["Diagnostics", "PointProbe"]
 
@@ -39,7 +41,12 @@ class PointProbe:
     """
 
     def __init__(self, mesh, points: Sequence[Sequence[float]]):
-        self.points = np.array([list(p) + [0.0] * (3 - len(p)) for p in points], dtype=float).reshape(-1, 3)
+        try:
+            self.points = np.array([list(p) + [0.0] * (3 - len(p)) for p in points], dtype=float).reshape(-1, 3)
+        except (TypeError, ValueError):
+            raise ParameterError(f"PointProbe: points must be sequences of 1 to 3 numbers, got {points!r}") from None
+        if not np.all(np.isfinite(self.points)):
+            raise ParameterError(f"PointProbe: points must be finite, got {self.points.tolist()}")
         tdim = mesh.topology.dim
         owned = np.arange(mesh.topology.index_map(tdim).size_local, dtype=np.int32)
         tree = geometry.bb_tree(mesh, tdim, entities=owned)
@@ -53,7 +60,7 @@ class PointProbe:
             mine = comm.rank if len(links) else comm.size
             owner = comm.allreduce(mine, op=MPI.MIN)
             if owner == comm.size:
-                raise ValueError(f"PointProbe: point {self.points[i].tolist()} is outside the mesh")
+                raise ParameterError(f"PointProbe: point {self.points[i].tolist()} is outside the mesh")
             self._cells.append(int(links[0]) if owner == comm.rank else -1)
 
     def __call__(self, f: fem.Function) -> np.ndarray:
@@ -169,20 +176,35 @@ class Diagnostics:
         }
 
     def write_csv(self, path: str | Path) -> None:
-        """Write all rows to ``path`` (rank 0)."""
-        if self.problem.domain.comm.rank != 0 or not self.rows:
+        """Write all rows to ``path`` (rank 0 writes; every rank must call).
+
+        Raises:
+            OutputError: On every rank, if the file cannot be written.
+        """
+        if not self.rows:
             return
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
-            writer.writeheader()
-            writer.writerows(self.rows)
+
+        def write() -> None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with path.open("w", newline="") as fh:
+                writer = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
+                writer.writeheader()
+                writer.writerows(self.rows)
+
+        on_rank0(self.problem.domain.comm, write, f"cannot write {path}")
 
     def write_json(self, path: str | Path, extra: dict | None = None) -> None:
-        """Write the summary (plus ``extra``) to ``path`` (rank 0)."""
-        if self.problem.domain.comm.rank != 0:
-            return
+        """Write the summary (plus ``extra``) to ``path`` (rank 0 writes; every rank must call).
+
+        Raises:
+            OutputError: On every rank, if the file cannot be written.
+        """
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({**(extra or {}), "summary": self.summary()}, indent=2, default=str))
+        text = json.dumps({**(extra or {}), "summary": self.summary()}, indent=2, default=str)
+
+        def write() -> None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+
+        on_rank0(self.problem.domain.comm, write, f"cannot write {path}")

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperfem.errors import ParameterError
+from hyperfem.materials.parameters import is_finite_number
 
 __all__ = ["BackwardEuler", "GeneralizedAlpha", "Newmark", "QuasiStatic", "TimeIntegrator"]
 
@@ -110,7 +111,7 @@ class _AlphaFamily(TimeIntegrator):
     def _check(self) -> None:
         for name in ("beta", "gamma"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            if not (is_finite_number(v) and v > 0):
                 raise ParameterError(f"{type(self).__name__}: {name} must be a finite number > 0, got {v!r}")
 
     def _predict(self, dt, u_n, v_n, a_n):
@@ -173,7 +174,7 @@ class GeneralizedAlpha(_AlphaFamily):
     rho_inf: float = 0.8
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.rho_inf, (int, float)) and 0.0 <= self.rho_inf <= 1.0):
+        if not (is_finite_number(self.rho_inf) and 0.0 <= self.rho_inf <= 1.0):
             raise ParameterError(f"GeneralizedAlpha: rho_inf must lie in [0, 1], got {self.rho_inf!r}")
 
     name = "generalized-alpha"

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperfem.errors import ParameterError
+from hyperfem.materials.parameters import is_finite_number
 from hyperfem.problem.boundary_conditions import PrescribedDisplacement
 
 __all__ = ["Steady", "Ramp", "RigidRotation", "rotation_matrix", "rotating_surface"]
@@ -32,6 +33,10 @@ class Steady:
     """The profile :math:`f(t) = c` (a load that is on from :math:`t = 0`)."""
 
     value: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not is_finite_number(self.value):
+            raise ParameterError(f"Steady: value must be a finite number, got {self.value!r}")
 
     def __call__(self, t: float) -> float:
         return float(self.value)
@@ -57,6 +62,10 @@ class Ramp:
     t0: float = 0.0
 
     def __post_init__(self) -> None:
+        for name in ("t1", "final", "initial", "t0"):
+            value = getattr(self, name)
+            if not is_finite_number(value):
+                raise ParameterError(f"Ramp: {name} must be a finite number, got {value!r}")
         if not self.t1 > self.t0:
             raise ParameterError(f"Ramp: need t1 > t0, got t0={self.t0!r}, t1={self.t1!r}")
 
@@ -72,10 +81,15 @@ class Ramp:
 
 def rotation_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
     r"""Rotation by ``angle`` (radians, right-handed) about ``axis`` (Rodrigues)."""
-    a = np.asarray(axis, dtype=float)
+    try:
+        a = np.asarray(axis, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"rotation_matrix: axis must be a non-zero finite 3-vector, got {axis!r}") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
+        raise ParameterError(f"rotation_matrix: axis must be a non-zero finite 3-vector, got {axis!r}")
     n = np.linalg.norm(a)
-    if a.shape != (3,) or n == 0:
-        raise ParameterError(f"rotation_matrix: axis must be a non-zero 3-vector, got {axis!r}")
+    if not math.isfinite(float(angle)):
+        raise ParameterError(f"rotation_matrix: angle must be a finite number, got {angle!r}")
     a = a / n
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
@@ -101,8 +115,10 @@ class RigidRotation:
 
     def __post_init__(self) -> None:
         rotation_matrix(self.axis, 0.0)  # validates the axis
-        if len(self.center) != 3:
-            raise ParameterError(f"RigidRotation: center must have 3 coordinates, got {self.center!r}")
+        if len(self.center) != 3 or not all(is_finite_number(c) for c in self.center):
+            raise ParameterError(f"RigidRotation: center must be 3 finite coordinates, got {self.center!r}")
+        if not callable(self.angle):
+            raise ParameterError(f"RigidRotation: angle must be a callable angle(t), got {self.angle!r}")
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
         R = rotation_matrix(self.axis, float(self.angle(t)))

@@ -24,6 +24,7 @@ so no sliver steps arise; this does not change the nominal :math:`\Delta t`.
 from __future__ import annotations
 
 import math
+import numbers
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ import numpy as np
 from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.materials.parameters import is_finite_number
 from hyperfem.solver.newton import SolveRecord
 
 __all__ = ["TimeStepRecord", "TimeStepping", "integrate"]
@@ -66,16 +68,30 @@ class TimeStepping:
     max_steps: int = 1_000_000
 
     def __post_init__(self) -> None:
+        where = "TimeStepping"
+        for name in (
+            ("dt", "t_end", "tolerance")
+            + (("dt_min",) if self.dt_min is not None else ())
+            + (("dt_max",) if self.dt_max is not None else ())
+        ):
+            value = getattr(self, name)
+            if not is_finite_number(value):
+                raise ParameterError(f"{where}: {name} must be a finite number, got {value!r}")
         if not self.dt > 0:
-            raise ParameterError(f"TimeStepping: dt must be > 0, got {self.dt!r}")
+            raise ParameterError(f"{where}: dt must be > 0, got {self.dt!r}")
         if not (self.dt_min is None or 0 < self.dt_min <= self.dt):
-            raise ParameterError(f"TimeStepping: need 0 < dt_min <= dt, got dt_min={self.dt_min!r}")
+            raise ParameterError(f"{where}: need 0 < dt_min <= dt, got dt_min={self.dt_min!r}")
         if not (self.dt_max is None or self.dt_max >= self.dt):
-            raise ParameterError(f"TimeStepping: need dt_max >= dt, got dt_max={self.dt_max!r}")
+            raise ParameterError(f"{where}: need dt_max >= dt, got dt_max={self.dt_max!r}")
         if not self.tolerance > 0:
-            raise ParameterError(f"TimeStepping: tolerance must be > 0, got {self.tolerance!r}")
-        if self.grow_after < 1:
-            raise ParameterError(f"TimeStepping: grow_after must be >= 1, got {self.grow_after!r}")
+            raise ParameterError(f"{where}: tolerance must be > 0, got {self.tolerance!r}")
+        for name in ("grow_after", "max_steps"):
+            value = getattr(self, name)
+            if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
+                raise ParameterError(f"{where}: {name} must be an integer >= 1, got {value!r}")
+        bad = [t for t in self.must_hit if not is_finite_number(t)]
+        if bad:
+            raise ParameterError(f"{where}: must_hit times must be finite numbers, got {bad[0]!r}")
 
     @property
     def min_step(self) -> float:

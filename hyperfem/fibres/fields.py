@@ -51,6 +51,8 @@ def fibre_space(mesh, representation: str = "DG0", quadrature_degree: int = 1) -
     if representation == "DG0":
         return fem.functionspace(mesh, ("DG", 0, (gdim,)))
     if representation == "quadrature":
+        if not (isinstance(quadrature_degree, int) and quadrature_degree >= 0) or isinstance(quadrature_degree, bool):
+            raise ParameterError(f"fibre_space: quadrature_degree must be an integer >= 0, got {quadrature_degree!r}")
         element = basix.ufl.quadrature_element(mesh.basix_cell(), value_shape=(gdim,), degree=quadrature_degree)
         return fem.functionspace(mesh, element)
     raise ParameterError(f"unknown fibre representation {representation!r} (available: {', '.join(REPRESENTATIONS)})")
@@ -65,8 +67,11 @@ def normalize_fibres(a0: fem.Function, tol: float = 1e-12) -> fem.Function:
     bs = a0.function_space.dofmap.index_map_bs
     values = a0.x.array.reshape(-1, bs)
     norms = np.linalg.norm(values, axis=1)
-    bad = int(np.count_nonzero(norms <= tol))
-    bad = a0.function_space.mesh.comm.allreduce(bad, op=MPI.SUM)
+    comm = a0.function_space.mesh.comm
+    nonfinite = comm.allreduce(int(np.count_nonzero(~np.isfinite(norms))), op=MPI.SUM)
+    if nonfinite:
+        raise ParameterError(f"fibre field has {nonfinite} non-finite vector(s) (nan or inf); cannot normalise")
+    bad = comm.allreduce(int(np.count_nonzero(norms <= tol)), op=MPI.SUM)
     if bad:
         raise ParameterError(f"fibre field has {bad} zero-length vector(s); cannot normalise")
     values /= norms[:, None]

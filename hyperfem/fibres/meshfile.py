@@ -73,7 +73,13 @@ def fibres_from_file(domain: Domain, path: str | Path, name: str, location: str 
         raise MeshFileNotFoundError(f"fibre file not found: {path}")
     if location not in ("point", "cell"):
         raise MeshError(f"fibres_from_file: location must be 'point' or 'cell', got {location!r}")
-    data = meshio.read(path)
+    try:  # every rank reads the file, so every rank fails alike
+        data = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - meshio raises many types, and calls sys.exit(1)
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        if isinstance(exc, SystemExit):
+            reason = f"not a {path.suffix or 'known'} mesh file meshio can read"
+        raise MeshError(f"{path}: meshio cannot read the file: {reason}") from None
     gdim = domain.gdim
     mesh = domain.mesh
     if location == "point":

@@ -1,6 +1,6 @@
-"""Input/output: point probes, VTX files, JSON summaries."""
+"""Input/output: point probes, VTX files, JSON summaries, collective output-folder checks."""
 
 from hyperfem.io.probes import PointProbe
-from hyperfem.io.results import VTXOutput, write_json
+from hyperfem.io.results import VTXOutput, ensure_output_dir, on_rank0, write_json
 
-__all__ = ["PointProbe", "VTXOutput", "write_json"]
+__all__ = ["PointProbe", "VTXOutput", "ensure_output_dir", "on_rank0", "write_json"]

@@ -23,11 +23,19 @@ class PointProbe:
         points: Array of shape ``(n, 3)`` (or ``(3,)``) in reference coordinates.
 
     Raises:
-        ParameterError: If a point lies outside the mesh.
+        ParameterError: If a point is not 1 to 3 finite coordinates or lies outside the mesh.
     """
 
     def __init__(self, mesh, points):
-        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        try:
+            pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        except (TypeError, ValueError):
+            raise ParameterError(f"PointProbe: points must be an (n, 3) array of numbers, got {points!r}") from None
+        if pts.ndim != 2 or not 1 <= pts.shape[1] <= 3 or pts.shape[0] == 0:
+            raise ParameterError(f"PointProbe: points must have shape (n, 1..3), got {pts.shape}")
+        if not np.all(np.isfinite(pts)):
+            bad = pts[~np.all(np.isfinite(pts), axis=1)][0]
+            raise ParameterError(f"PointProbe: point {bad.tolist()} has a non-finite coordinate")
         if pts.shape[1] < 3:
             pts = np.hstack([pts, np.zeros((pts.shape[0], 3 - pts.shape[1]))])
         self.points = pts

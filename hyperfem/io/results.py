@@ -1,15 +1,81 @@
-"""Writing results: VTX (ADIOS2) files for ParaView and JSON summaries."""
+"""Writing results: VTX (ADIOS2) files for ParaView and JSON summaries.
+
+File-system work happens on rank 0; its outcome is broadcast so that a
+folder that cannot be created or written raises the same
+:class:`~hyperfem.errors.OutputError` on every rank instead of leaving the
+other ranks waiting in a collective call.
+"""
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import os
+import uuid
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 from dolfinx import fem, io
 
-__all__ = ["VTXOutput", "write_json"]
+from hyperfem.errors import OutputError
+
+__all__ = ["VTXOutput", "ensure_output_dir", "on_rank0", "write_json"]
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return text or type(exc).__name__
+
+
+def on_rank0(comm, action: Callable[[], object], what: str) -> object:
+    """Run ``action()`` on rank 0 and raise the same :class:`OutputError` on every rank if it fails.
+
+    Args:
+        comm: Communicator (every rank must call).
+        action: File-system work done by rank 0 only.
+        what: Start of the error message, e.g. ``"cannot write /tmp/x.json"``.
+
+    Returns:
+        ``action()``'s result on rank 0, ``None`` elsewhere.
+    """
+    result, error = None, ""
+    if comm.rank == 0:
+        try:
+            result = action()
+        except (OSError, ValueError, TypeError) as exc:
+            error = f"{what}: {_reason(exc)}"
+    error = comm.bcast(error, root=0)
+    if error:
+        raise OutputError(error)
+    return result
+
+
+def ensure_output_dir(path: str | Path, comm) -> Path:
+    """Create the output folder ``path`` (rank 0) and check that it is writable, on every rank.
+
+    Rank 0 makes the folder (with parents) and writes and removes a probe
+    file; success or the reason for failure is broadcast, so every rank
+    returns or raises the same error. Call it before any long computation.
+
+    Returns:
+        The path.
+
+    Raises:
+        OutputError: If the folder cannot be created or written (same message on every rank).
+    """
+    path = Path(path)
+
+    def probe() -> None:
+        path.mkdir(parents=True, exist_ok=True)
+        test = path / f".hyperfem-write-test-{uuid.uuid4().hex}"
+        with open(test, "w") as fh:
+            fh.write("ok\n")
+        os.remove(test)
+
+    on_rank0(comm, probe, f"output folder {path} cannot be created or written")
+    return path
 
 
 def _jsonable(obj):
@@ -31,12 +97,18 @@ def write_json(path: str | Path, data: dict, comm) -> Path:
 
     Returns:
         The path.
+
+    Raises:
+        OutputError: On every rank, if rank 0 cannot write the file.
     """
     path = Path(path)
-    if comm.rank == 0:
+    text = json.dumps(_jsonable(data), indent=2, default=str) + "\n"
+
+    def write() -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(_jsonable(data), indent=2) + "\n")
-    comm.Barrier()
+        path.write_text(text)
+
+    on_rank0(comm, write, f"cannot write {path}")
     return path
 
 
@@ -56,9 +128,7 @@ class VTXOutput:
 
     def __init__(self, comm, path: str | Path, functions: Sequence[fem.Function], degree: int | None = None):
         self.path = Path(path)
-        if comm.rank == 0:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-        comm.Barrier()
+        ensure_output_dir(self.path.parent, comm)
         mesh = functions[0].function_space.mesh
         if degree is None:
             degree = max(max(1, f.function_space.ufl_element().embedded_superdegree) for f in functions)

@@ -18,14 +18,13 @@ supplement) with :math:`J_{cc} = J^{-2/3}`, is
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import ufl
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import isochoric_invariants, jacobian, plane_strain_3d, right_cauchy_green
-from hyperfem.materials.parameters import check_positive
+from hyperfem.materials.parameters import check_positive, is_finite_number
 from hyperfem.materials.volumetric import volumetric_energy, volumetric_law
 
 __all__ = [
@@ -58,7 +57,7 @@ class MooneyRivlinParameters:
 
     def __post_init__(self) -> None:
         check_positive("c1", self.c1, "MooneyRivlinParameters")
-        if not (isinstance(self.c2, (int, float)) and math.isfinite(self.c2) and self.c2 >= 0):
+        if not (is_finite_number(self.c2) and self.c2 >= 0):
             raise ParameterError(f"MooneyRivlinParameters: c2 must be a finite number >= 0, got {self.c2!r}")
         check_positive("K", self.K, "MooneyRivlinParameters")
         volumetric_law(self.volumetric)

@@ -49,7 +49,7 @@ import ufl
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import right_cauchy_green
 from hyperfem.materials.mooney_rivlin import mooney_rivlin_isochoric, mooney_rivlin_isochoric_stress
-from hyperfem.materials.parameters import check_positive
+from hyperfem.materials.parameters import check_positive, is_finite_number
 from hyperfem.materials.volumetric import volumetric_energy, volumetric_law
 
 __all__ = [
@@ -73,7 +73,7 @@ Scalar = float | Expr
 
 
 def _finite(value) -> bool:
-    return isinstance(value, (int, float)) and math.isfinite(value)
+    return is_finite_number(value)
 
 
 @dataclass(frozen=True)

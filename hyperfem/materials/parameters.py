@@ -10,16 +10,22 @@ built from Young's modulus and Poisson's ratio:
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 from hyperfem.errors import ParameterError
 
-__all__ = ["LameParameters", "check_positive"]
+__all__ = ["LameParameters", "check_positive", "is_finite_number"]
+
+
+def is_finite_number(value) -> bool:
+    """Whether ``value`` is a finite real number (Python or NumPy; ``bool`` is not a number here)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
 
 
 def check_positive(name: str, value: float, where: str) -> None:
-    """Raise :class:`ParameterError` unless ``value`` is a finite number > 0."""
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+    """Raise :class:`ParameterError` unless ``value`` is a finite number > 0 (rejects nan and inf)."""
+    if not (is_finite_number(value) and value > 0):
         raise ParameterError(f"{where}: {name} must be a finite number > 0, got {value!r}")
 
 
@@ -38,7 +44,7 @@ class LameParameters:
 
     def __post_init__(self) -> None:
         check_positive("mu", self.mu, "LameParameters")
-        if not (isinstance(self.lmbda, (int, float)) and math.isfinite(self.lmbda)):
+        if not is_finite_number(self.lmbda):
             raise ParameterError(f"LameParameters: lmbda must be a finite number, got {self.lmbda!r}")
         if self.lmbda + 2.0 * self.mu / 3.0 <= 0:
             raise ParameterError(
@@ -54,7 +60,7 @@ class LameParameters:
             ParameterError: If ``E <= 0`` or ``nu`` is outside the open interval (-1, 1/2).
         """
         check_positive("E", E, "LameParameters.from_youngs")
-        if not (isinstance(nu, (int, float)) and -1.0 < nu < 0.5):
+        if not (is_finite_number(nu) and -1.0 < nu < 0.5):
             raise ParameterError(
                 f"LameParameters.from_youngs: Poisson ratio nu must lie in (-1, 0.5), got {nu!r}"
             )

@@ -13,12 +13,13 @@ gmsh runs on rank 0 only; the mesh is distributed by DOLFINx.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
+from hyperfem.materials.parameters import is_finite_number
+from hyperfem.io.results import ensure_output_dir
 from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
@@ -30,7 +31,7 @@ LENGTH, WIDTH, HEIGHT = 10.0, 4.0, 4.0
 
 
 def _check(h: float, order: int) -> None:
-    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+    if not (is_finite_number(h) and h > 0):
         raise ParameterError(f"beam mesh: element size h must be a finite number > 0, got {h!r}")
     if order not in (1, 2):
         raise ParameterError(f"beam mesh: order must be 1 or 2, got {order!r}")
@@ -90,7 +91,7 @@ def write_beam_mesh(path: str | Path, h: float = 1.0, order: int = 1) -> Path:
         The path written.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    ensure_output_dir(path.parent, MPI.COMM_SELF)  # OutputError if the folder cannot be written
 
     _check(h, order)
     with gmsh_session() as gmsh:

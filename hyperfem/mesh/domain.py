@@ -16,7 +16,7 @@ import numpy as np
 import ufl
 from dolfinx import mesh as dmesh
 
-from hyperfem.errors import UnknownGroupError
+from hyperfem.errors import ParameterError, UnknownGroupError
 
 __all__ = ["Domain"]
 
@@ -118,6 +118,11 @@ class Domain:
         fdim = tdim - 1
         mesh.topology.create_connectivity(fdim, tdim)
         facets = dict(facets or {})
+        for name, locator in facets.items():
+            if not (isinstance(name, str) and name) or not callable(locator):
+                raise ParameterError(
+                    f"Domain.from_locators: need boundary name (str) -> marker(x) callable, got {name!r}: {locator!r}"
+                )
         indices, values, groups = [], [], {}
         for tag, (name, locator) in enumerate(facets.items(), start=1):
             found = dmesh.locate_entities_boundary(mesh, fdim, locator)

@@ -25,6 +25,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from hyperfem.errors import MeshError, ParameterError
+from hyperfem.materials.parameters import is_finite_number
+from hyperfem.io.results import ensure_output_dir
 from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
@@ -62,13 +64,14 @@ class FusiformGeometry:
     def __post_init__(self) -> None:
         for name in ("belly_length", "belly_radius", "tendon_radius", "tendon_length"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if not (is_finite_number(value) and value > 0):
                 raise ParameterError(f"FusiformGeometry: {name} must be > 0, got {value!r}")
         if self.tendon_radius >= self.belly_radius:
             raise ParameterError(
                 f"FusiformGeometry: tendon_radius {self.tendon_radius} must be below belly_radius {self.belly_radius}"
             )
-        if self.sections < 3 or self.sections % 2 == 0:
+        sections = self.sections
+        if not isinstance(sections, int) or isinstance(sections, bool) or sections < 3 or sections % 2 == 0:
             raise ParameterError(f"FusiformGeometry: sections must be odd and >= 3, got {self.sections}")
 
     def radius(self, z: float) -> float:
@@ -134,7 +137,7 @@ def _build(gmsh, geo: FusiformGeometry, h: float, order: int) -> None:
 
 
 def _check(h: float, order: int) -> None:
-    if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+    if not (is_finite_number(h) and h > 0):
         raise ParameterError(f"fusiform mesh: element size h must be > 0, got {h!r}")
     if order not in (1, 2):
         raise ParameterError(f"fusiform mesh: order must be 1 or 2, got {order!r}")
@@ -170,7 +173,7 @@ def write_fusiform_mesh(
     path = Path(path)
     _check(h, order)
     geometry = geometry or FusiformGeometry()
-    path.parent.mkdir(parents=True, exist_ok=True)
+    ensure_output_dir(path.parent, MPI.COMM_SELF)  # OutputError if the folder cannot be written
 
     with gmsh_session() as gmsh:
         _build(gmsh, geometry, h, order)

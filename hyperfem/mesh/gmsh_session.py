@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 
 from hyperfem.errors import MeshError
 
@@ -32,17 +32,26 @@ def gmsh_session() -> Iterator[object]:
             gmsh.finalize()
 
 
-def distribute_model(comm, build, gdim: int = 3, what: str = "gmsh model"):
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return text or type(exc).__name__
+
+
+def distribute_model(comm, build, gdim: int | None = 3, what: str = "gmsh model"):
     """Build a gmsh model on rank 0 and distribute it as a DOLFINx mesh.
 
-    A failure while building is broadcast before the collective distribution,
-    so every rank raises the same :class:`~hyperfem.errors.MeshError` instead of
-    waiting for rank 0.
+    Everything rank 0 does alone (importing and starting gmsh, building or
+    reading the model) is guarded: its failure is broadcast before the
+    collective distribution, so every rank raises the same
+    :class:`~hyperfem.errors.MeshError` instead of waiting for rank 0. The
+    errors DOLFINx raises collectively while distributing (no physical groups,
+    cells tagged twice) become a :class:`~hyperfem.errors.MeshError` too.
 
     Args:
         comm: Communicator.
-        build: ``build(gmsh)`` that adds and meshes the model (rank 0 only).
-        gdim: Geometric dimension.
+        build: ``build(gmsh)`` that adds and meshes the model (rank 0 only). It
+            may return the geometric dimension, used when ``gdim`` is ``None``.
+        gdim: Geometric dimension, or ``None`` for the one ``build`` returns (default 3).
         what: Name used in error messages.
 
     Returns:
@@ -50,18 +59,26 @@ def distribute_model(comm, build, gdim: int = 3, what: str = "gmsh model"):
     """
     from dolfinx.io import gmsh as dgmsh
 
+    def distribute(model, dim: int):
+        try:
+            return dgmsh.model_to_mesh(model, comm, 0, gdim=dim)
+        except RuntimeError as exc:  # raised on every rank (DOLFINx broadcasts its checks)
+            raise MeshError(f"{what}: {_first_line(exc)}") from None
+
     if comm.rank == 0:
-        with gmsh_session() as gmsh:
-            error = ""
-            try:
-                build(gmsh)
+        with ExitStack() as stack:
+            error, dim, gmsh = "", None, None
+            try:  # importing/starting gmsh and building the model happen on rank 0 alone
+                gmsh = stack.enter_context(gmsh_session())
+                found = build(gmsh)
+                dim = gdim if gdim is not None else (found or 3)
             except Exception as exc:  # gmsh raises bare Exceptions
-                error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            comm.bcast(error, root=0)
+                error = _first_line(exc)
+            comm.bcast((error, dim), root=0)
             if error:
                 raise MeshError(f"{what}: {error}")
-            return dgmsh.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
-    error = comm.bcast(None, root=0)
+            return distribute(gmsh.model, dim)
+    error, dim = comm.bcast(None, root=0)
     if error:
         raise MeshError(f"{what}: {error}")
-    return dgmsh.model_to_mesh(None, comm, 0, gdim=gdim)
+    return distribute(None, dim)

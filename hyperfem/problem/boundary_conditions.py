@@ -13,14 +13,17 @@ each ``s`` instead (e.g. a rigid rotation of a surface).
 from __future__ import annotations
 
 import inspect
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from dolfinx import fem
+from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
 from hyperfem.mesh.domain import Domain
+from hyperfem.problem.validation import check_callable, check_finite_vector, check_name
 
 __all__ = ["BoundaryCondition", "Clamp", "PrescribedDisplacement", "linear_profile"]
 
@@ -39,6 +42,9 @@ class Clamp:
     """
 
     boundary: str
+
+    def __post_init__(self) -> None:
+        check_name(self.boundary, "boundary", "Clamp")
 
 
 @dataclass(frozen=True)
@@ -61,6 +67,24 @@ class PrescribedDisplacement:
     components: Sequence[int] | None = None
     profile: Callable[[float], float] = linear_profile
 
+    def __post_init__(self) -> None:
+        check_name(self.boundary, "boundary", "PrescribedDisplacement")
+        where = f"PrescribedDisplacement on {self.boundary!r}"
+        if self.components is not None:
+            comps = self.components
+            if isinstance(comps, (str, bytes)) or not hasattr(comps, "__iter__"):
+                raise ParameterError(f"{where}: components must be a sequence of integers, got {comps!r}")
+            comps = list(comps)
+            if not comps or not all(isinstance(c, numbers.Integral) and not isinstance(c, bool) for c in comps):
+                raise ParameterError(f"{where}: components must be a non-empty sequence of integers, got {comps!r}")
+            if len(set(comps)) != len(comps):
+                raise ParameterError(f"{where}: components {comps} contain duplicates")
+        if not callable(self.value):
+            values = check_finite_vector(self.value, where)
+            if self.components is not None and len(values) != len(list(self.components)):
+                raise ParameterError(f"{where}: {len(values)} values for {len(list(self.components))} components")
+        check_callable(self.profile, where, "profile")
+
 
 BoundaryCondition = Clamp | PrescribedDisplacement
 
@@ -73,6 +97,10 @@ class _CompiledDirichlet:
     """
 
     def __init__(self, bc: BoundaryCondition, V: fem.FunctionSpace, domain: Domain):
+        if not isinstance(bc, (Clamp, PrescribedDisplacement)):
+            raise ParameterError(
+                f"boundary conditions must be Clamp or PrescribedDisplacement, got {type(bc).__name__}"
+            )
         fdim = domain.tdim - 1
         facets = domain.facets(bc.boundary)
         gdim = domain.gdim
@@ -91,6 +119,7 @@ class _CompiledDirichlet:
         self._parametric = callable(value) and len(inspect.signature(value).parameters) >= 2
         self._parts = []  # (full function g, working function w, component index or None, components)
         self.dirichlet = []
+        self._boundary_dofs = []  # per part: blocked dofs of g's space on the boundary
         whole = components == list(range(gdim))
         is_subspace = len(V.component()) > 0
         if whole:
@@ -108,14 +137,41 @@ class _CompiledDirichlet:
                 dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
                 self.dirichlet.append(fem.dirichletbc(w, dofs, sub))
             self._parts.append((g, w, comp, components))
+            self._boundary_dofs.append(fem.locate_dofs_topological(W, fdim, facets))
         if value is not None and not self._parametric:
             self._interpolate(value, None)
 
     def _interpolate(self, value, s: float | None) -> None:
+        where = f"PrescribedDisplacement on {self.bc.boundary!r}"
+        at = "" if s is None else f" at load factor/time {s:g}"
+        comm = self._parts[0][0].function_space.mesh.comm
+        if not callable(value):  # validated on construction
+            self._interpolate_parts(value, s)
+            return
+        # The callable runs on every rank's own points: agree on failure before raising.
+        error = ""
+        try:
+            self._interpolate_parts(value, s)
+        except Exception as exc:  # noqa: BLE001 - user callable; reported on every rank
+            error = (str(exc).splitlines() or [type(exc).__name__])[0]
+        errors = [e for e in comm.allgather(error) if e]
+        if errors:
+            raise ParameterError(f"{where}: evaluating the value{at} failed: {errors[0]}")
+        bad = 0
+        for (g, _, _, _), dofs in zip(self._parts, self._boundary_dofs, strict=True):
+            bs = g.function_space.dofmap.index_map_bs
+            bad += int(np.count_nonzero(~np.isfinite(g.x.array.reshape(-1, bs)[dofs])))
+        bad = comm.allreduce(bad, op=MPI.SUM)
+        if bad:
+            raise ParameterError(f"{where}: the value{at} is not finite (nan or inf) at {bad} boundary value(s)")
+
+    def _interpolate_parts(self, value, s: float | None) -> None:
         for g, _, comp, components in self._parts:
             if callable(value):
-                f = (lambda x, s=s: np.atleast_2d(value(x, s))) if self._parametric else (
-                    lambda x: np.atleast_2d(value(x))
+                f = (
+                    (lambda x, s=s: np.atleast_2d(value(x, s)))
+                    if self._parametric
+                    else (lambda x: np.atleast_2d(value(x)))
                 )
                 if comp is None:
                     g.interpolate(f)
@@ -145,5 +201,9 @@ class _CompiledDirichlet:
                 w.x.array[:] = g.x.array
         else:
             scale = float(self.bc.profile(s))
+            if not np.isfinite(scale):
+                raise ParameterError(
+                    f"PrescribedDisplacement on {self.bc.boundary!r}: profile({s:g}) = {scale!r} is not finite"
+                )
             for g, w, _, _ in self._parts:
                 w.x.array[:] = scale * g.x.array

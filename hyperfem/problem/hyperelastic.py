@@ -15,6 +15,7 @@ forms never need recompiling.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Mapping, Sequence
 
 import ufl
@@ -26,6 +27,7 @@ from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.loads import Load
+from hyperfem.problem.validation import scalar_energy
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
 
@@ -38,6 +40,13 @@ def default_quadrature_degree(degree: int) -> int:
     P1: one point (F is constant per cell); P2 and higher: ``2 * degree``.
     """
     return 1 if degree == 1 else 2 * degree
+
+
+def as_sequence(items, what: str, where: str) -> list:
+    """``items`` as a list; a single condition or load (or a non-sequence) is an error."""
+    if isinstance(items, (str, bytes, Mapping)) or not hasattr(items, "__iter__"):
+        raise ParameterError(f"{where}: {what} must be a list or tuple, got {type(items).__name__}")
+    return list(items)
 
 
 class HyperelasticProblem(EnergyProblem):
@@ -74,8 +83,29 @@ class HyperelasticProblem(EnergyProblem):
         degree: int = 1,
         quadrature_degree: int | None = None,
     ):
-        if degree < 1:
-            raise ParameterError(f"HyperelasticProblem: degree must be >= 1, got {degree}")
+        where = "HyperelasticProblem"
+        if not isinstance(domain, Domain):
+            raise ParameterError(
+                f"{where}: domain must be a hyperfem Domain (hf.read_mesh, hf.beam_mesh, Domain.from_locators), "
+                f"got {type(domain).__name__}"
+            )
+        if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 1):
+            raise ParameterError(f"{where}: degree must be an integer >= 1, got {degree!r}")
+        if quadrature_degree is not None and not (
+            isinstance(quadrature_degree, numbers.Integral)
+            and not isinstance(quadrature_degree, bool)
+            and quadrature_degree >= 1
+        ):
+            raise ParameterError(
+                f"{where}: quadrature_degree must be an integer >= 1 or None, got {quadrature_degree!r}"
+            )
+        bcs = as_sequence(bcs, "bcs", where)
+        loads = as_sequence(loads, "loads", where)
+        if not (callable(material) or isinstance(material, Mapping)):
+            raise ParameterError(
+                f"{where}: material must be an energy psi(F) or a mapping region name -> psi(F), "
+                f"got {type(material).__name__}"
+            )
         self.domain = domain
         mesh = domain.mesh
         gdim = domain.gdim
@@ -90,12 +120,14 @@ class HyperelasticProblem(EnergyProblem):
 
         # Stored energy, per region.
         if callable(material):
-            self.energy_internal = material(self.F) * domain.dx(metadata=md)
+            psi = scalar_energy(material, self.F, f"{where}, whole domain")
+            self.energy_internal = psi * domain.dx(metadata=md)
         else:
             if not material:
-                raise ParameterError("HyperelasticProblem: material mapping is empty")
+                raise ParameterError(f"{where}: material mapping is empty")
             self.energy_internal = sum(
-                psi(self.F) * domain.dx(name, metadata=md) for name, psi in material.items()
+                scalar_energy(psi, self.F, f"{where}, region {name!r}") * domain.dx(name, metadata=md)
+                for name, psi in material.items()
             )
         self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
 

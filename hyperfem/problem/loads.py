@@ -25,7 +25,10 @@ import ufl
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
+from hyperfem.kinematics import cofactor
 from hyperfem.problem.boundary_conditions import linear_profile
+from hyperfem.problem.quadrature import load_quadrature_degree
+from hyperfem.problem.validation import check_callable, check_finite_scalar, check_finite_vector, check_name
 
 __all__ = ["BodyForce", "DeadTraction", "FollowerPressure", "FollowerTraction", "Load", "LoadTerms", "load_terms"]
 
@@ -45,6 +48,9 @@ class DeadTraction:
     value: Sequence[float] | Callable
     profile: Callable[[float], float] = linear_profile
 
+    def __post_init__(self) -> None:
+        _check_load(self, self.boundary)
+
 
 @dataclass(frozen=True)
 class FollowerTraction:
@@ -61,6 +67,9 @@ class FollowerTraction:
     value: Sequence[float] | Callable
     profile: Callable[[float], float] = linear_profile
 
+    def __post_init__(self) -> None:
+        _check_load(self, self.boundary)
+
 
 @dataclass(frozen=True)
 class FollowerPressure:
@@ -75,6 +84,9 @@ class FollowerPressure:
     boundary: str
     value: float
     profile: Callable[[float], float] = linear_profile
+
+    def __post_init__(self) -> None:
+        _check_load(self, self.boundary)
 
 
 @dataclass(frozen=True)
@@ -91,8 +103,28 @@ class BodyForce:
     region: str | None = None
     profile: Callable[[float], float] = linear_profile
 
+    def __post_init__(self) -> None:
+        _check_load(self, self.region)
+
 
 Load = DeadTraction | FollowerTraction | FollowerPressure | BodyForce
+
+
+def _check_load(load, name: str | None) -> None:
+    """Validate a load on construction: group name, finite value(s), callable profile."""
+    kind = type(load).__name__
+    body = isinstance(load, BodyForce)
+    check_name(name, "region" if body else "boundary", kind, optional=body)
+    where = f"{kind} on {name!r}" if name is not None else kind
+    if isinstance(load, FollowerPressure):
+        check_finite_scalar(load.value, where, "pressure value")
+    elif not callable(load.value):
+        check_finite_vector(load.value, where)
+    check_callable(load.profile, where, "profile")
+
+
+LOAD_DEGREE_CAP_OFFSET = 4
+"""Non-polynomial load integrands get at most the volume degree plus this."""
 
 
 def _vector(value, x, gdim: int, what: str):
@@ -112,11 +144,13 @@ class LoadTerms:
         scales: One ``(Constant, load)`` per load; the constant holds ``load.profile(s)``.
         external: Work of the dead loads (UFL scalar form), or ``None``.
         follower: Residual of the follower loads (UFL form linear in ``v``), or ``None``.
+        parts: One ``(load, form)`` per load (work or residual term; for diagnostics).
     """
 
     scales: list = field(default_factory=list)
     external: object = None
     follower: object = None
+    parts: list = field(default_factory=list)
 
     def set(self, s: float) -> None:
         """Set every load magnitude for load factor/time ``s``."""
@@ -127,13 +161,17 @@ class LoadTerms:
 def load_terms(loads, domain, u, v, F, metadata: dict, where: str = "problem") -> LoadTerms:
     """Build the external-work and follower-residual terms of ``loads``.
 
+    Each term gets its own quadrature degree
+    (:func:`~hyperfem.problem.quadrature.load_quadrature_degree`): exact where
+    the integrand is polynomial, never below the volume rule of ``metadata``.
+
     Args:
         loads: Sequence of loads.
         domain: The :class:`~hyperfem.mesh.Domain` (names → measures).
         u: Displacement (UFL; may be a block of a mixed function).
         v: Displacement test function (UFL; may be a block).
         F: Deformation gradient (UFL).
-        metadata: Measure metadata (quadrature degree).
+        metadata: Measure metadata of the volume rule (quadrature degree).
         where: Name used in error messages.
     """
     mesh = domain.mesh
@@ -141,24 +179,36 @@ def load_terms(loads, domain, u, v, F, metadata: dict, where: str = "problem") -
     X = ufl.SpatialCoordinate(mesh)
     terms = LoadTerms()
     external, follower = [], []
-    md = metadata
+    volume_degree = int(metadata["quadrature_degree"])
+    cap = volume_degree + LOAD_DEGREE_CAP_OFFSET
+
+    def md(integrand) -> dict:
+        return {**metadata, "quadrature_degree": load_quadrature_degree(integrand, volume_degree, cap)}
+
     for load in loads:
         c = fem.Constant(mesh, 0.0)
         terms.scales.append((c, load))
         if isinstance(load, DeadTraction):
             t = _vector(load.value, X, gdim, f"DeadTraction on {load.boundary!r}")
-            external.append(c * ufl.dot(t, u) * domain.ds(load.boundary, metadata=md))
+            w = ufl.dot(t, u)
+            external.append(c * w * domain.ds(load.boundary, metadata=md(w)))
+            terms.parts.append((load, external[-1]))
         elif isinstance(load, BodyForce):
             b = _vector(load.value, X, gdim, "BodyForce")
-            external.append(c * ufl.dot(b, u) * domain.dx(load.region, metadata=md))
+            w = ufl.dot(b, u)
+            external.append(c * w * domain.dx(load.region, metadata=md(w)))
+            terms.parts.append((load, external[-1]))
         elif isinstance(load, FollowerTraction):
             t = _vector(load.value, X + u, gdim, f"FollowerTraction on {load.boundary!r}")
-            follower.append(-c * ufl.dot(t, v) * domain.ds(load.boundary, metadata=md))
+            r = ufl.dot(t, v)
+            follower.append(-c * r * domain.ds(load.boundary, metadata=md(r)))
+            terms.parts.append((load, follower[-1]))
         elif isinstance(load, FollowerPressure):
             N = ufl.FacetNormal(mesh)
-            J = ufl.det(F)
             p = float(load.value)
-            follower.append(c * p * J * ufl.dot(ufl.inv(F).T * N, v) * domain.ds(load.boundary, metadata=md))
+            r = ufl.dot(cofactor(F) * N, v)  # J F^{-T} N (Nanson), polynomial in u
+            follower.append(c * p * r * domain.ds(load.boundary, metadata=md(r)))
+            terms.parts.append((load, follower[-1]))
         else:
             raise ParameterError(f"{where}: unknown load type {type(load).__name__}")
     terms.external = sum(external) if external else None
