@@ -12,6 +12,7 @@ from __future__ import annotations
 import ufl
 
 __all__ = [
+    "cofactor",
     "deformation_gradient",
     "green_lagrange",
     "invariants",
@@ -34,6 +35,24 @@ def deformation_gradient(u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
     """
     d = len(u)
     return ufl.Identity(d) + ufl.grad(u)
+
+
+def cofactor(F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    r"""Cofactor :math:`\operatorname{cof} F = J F^{-T}`, written as the polynomial it is.
+
+    In 3D its columns are :math:`F_{:,1}\times F_{:,2}`, :math:`F_{:,2}\times
+    F_{:,0}`, :math:`F_{:,0}\times F_{:,1}`; in 2D it is
+    :math:`\begin{pmatrix}F_{11} & -F_{10}\\ -F_{01} & F_{00}\end{pmatrix}`.
+    Unlike ``det(F) * inv(F).T`` it has no division, so UFL estimates its
+    polynomial degree exactly (quadrature of Nanson's formula).
+    """
+    d = F.ufl_shape[0]
+    if d == 2:
+        return ufl.as_matrix([[F[1, 1], -F[1, 0]], [-F[0, 1], F[0, 0]]])
+    if d != 3:
+        raise ValueError(f"cofactor: need a 2x2 or 3x3 tensor, got shape {F.ufl_shape}")
+    cols = [ufl.cross(F[:, 1], F[:, 2]), ufl.cross(F[:, 2], F[:, 0]), ufl.cross(F[:, 0], F[:, 1])]
+    return ufl.as_matrix([[cols[j][i] for j in range(3)] for i in range(3)])
 
 
 def right_cauchy_green(F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:

@@ -34,22 +34,9 @@ from dolfinx import fem
 from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form
 from hyperfem.dynamics.integrators import TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity
+from hyperfem.problem.quadrature import unify_cell_quadrature
 
 __all__ = ["DynamicState", "IncrementalProblem", "unify_cell_quadrature"]
-
-
-def unify_cell_quadrature(form: ufl.Form, metadata: dict) -> ufl.Form:
-    """Give every cell integral of ``form`` the same quadrature ``metadata``.
-
-    FFCx 0.11 evaluates a form wrongly when cell integrals of the same
-    subdomain use different quadrature rules and share a basis table (e.g.
-    :math:`\\int u\\cdot w` with degree 2 plus :math:`\\int u\\cdot u` with
-    degree 1 assembles to neither sum). Inertia terms need degree :math:`2p`
-    while the stored energy of P1 elements uses one point, so every cell
-    integral of an incremental form is put on the mass rule.
-    """
-    integrals = [i.reconstruct(metadata=dict(metadata)) if i.integral_type() == "cell" else i for i in form.integrals()]
-    return ufl.Form(integrals)
 
 
 class DynamicState:
@@ -88,6 +75,8 @@ class IncrementalProblem:
     ):
         self.base = base
         self.boundary_predictor = boundary_predictor
+        # Inertia makes the tangent regular without Dirichlet conditions.
+        self.rigid_motion_resisted = bool(integrator.dynamic)
         self._predictor = None
         self.integrator = integrator
         self.domain = base.domain
@@ -170,6 +159,14 @@ class IncrementalProblem:
     def load_factor(self) -> float:
         """The time the loads are evaluated at (for messages)."""
         return self.base.load_factor
+
+    def check_solution(self):
+        """The base problem's consistency indicators."""
+        return self.base.check_solution()
+
+    def nonfinite_terms(self) -> list[str]:
+        """The base problem's non-finite load terms."""
+        return self.base.nonfinite_terms()
 
     def volume_jacobian(self):
         """:math:`J = \\det F(u_{n+1})`."""
