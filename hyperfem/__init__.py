@@ -21,6 +21,7 @@ from hyperfem.errors import (
     HyperfemError,
     MeshError,
     MeshFileNotFoundError,
+    OutputError,
     ParameterError,
     UnknownGroupError,
 )
@@ -34,7 +35,15 @@ from hyperfem.problem import (
     HyperelasticProblem,
     PrescribedDisplacement,
 )
-from hyperfem.solver import LoadStepping, NewtonSolver, SolveRecord, StepRecord, solve_quasistatic
+from hyperfem.solver import (
+    ROUNDOFF_FACTOR,
+    LoadStepping,
+    NewtonSolver,
+    RoundoffWarning,
+    SolveRecord,
+    StepRecord,
+    solve_quasistatic,
+)
 
 __version__ = "0.1.0"
 
@@ -52,6 +61,9 @@ __all__ = [
     "MeshError",
     "MeshFileNotFoundError",
     "NewtonSolver",
+    "ROUNDOFF_FACTOR",
+    "RoundoffWarning",
+    "OutputError",
     "ParameterError",
     "PrescribedDisplacement",
     "SolveRecord",

@@ -18,8 +18,10 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
 from hyperfem.problem.loads import Load, load_terms
+from hyperfem.problem.quadrature import unify_quadrature
 
 __all__ = ["EnergyProblem"]
 
@@ -32,6 +34,8 @@ class EnergyProblem:
     """
 
     _updaters: list = []
+    rigid_motion_resisted = False
+    """Static problems need Dirichlet conditions that fix every rigid-body motion."""
 
     def _derive_forms(
         self,
@@ -49,8 +53,11 @@ class EnergyProblem:
         self._updaters = list(updaters)
         self._loads = load_terms(loads, domain, displacement, test_displacement, self.F, md, where)
         zero = fem.Constant(domain.mesh, 0.0) * ufl.dot(displacement, displacement) * domain.dx(metadata=md)
-        self.energy_external = self._loads.external if self._loads.external is not None else zero
-        self.follower_residual = self._loads.follower
+        external = self._loads.external if self._loads.external is not None else zero
+        # One rule per integral type across energy, loads and follower terms (FFCx 0.11).
+        self.energy_internal, self.energy_external, self.follower_residual = unify_quadrature(
+            self.energy_internal, external, self._loads.follower
+        )
         self.conservative = (self.follower_residual is None) if conservative is None else conservative
         self.energy = self.energy_internal - self.energy_external
         self.residual = ufl.derivative(self.energy, self.u, test)
@@ -73,6 +80,41 @@ class EnergyProblem:
             d.update(s)
         for updater in self._updaters:
             updater.update(s)
+
+    def check_solution(self) -> tuple[dict[str, float], str | None]:
+        """Consistency indicators of a converged state, and why it is not a solution (if it is not).
+
+        Called by :class:`~hyperfem.solver.NewtonSolver` after SNES reports
+        convergence; a message turns the solve into a failure (so stepping
+        cuts back instead of accepting a spurious stationary point). The
+        displacement formulation has nothing to check.
+
+        Returns:
+            ``(indicators, message)``: indicator name → value (recorded in the
+            :class:`~hyperfem.solver.SolveRecord`), and ``None`` or a one-line
+            reason.
+        """
+        return {}, None
+
+    def nonfinite_terms(self) -> list[str]:
+        """Names of the load terms whose residual is NaN/inf at the current state (for error messages)."""
+        bad = []
+        for load, form in self._loads.parts:
+            compiled = fem.form(form)
+            if compiled.rank == 0:
+                value = self.domain.comm.allreduce(fem.assemble_scalar(compiled), op=MPI.SUM)
+                ok = np.isfinite(value)
+            else:
+                vec = fem.assemble_vector(compiled)
+                ok = self.domain.comm.allreduce(bool(np.all(np.isfinite(vec.array))), op=MPI.LAND)
+            if not ok:
+                where = getattr(load, "boundary", None) or getattr(load, "region", None)
+                bad.append(f"{type(load).__name__}" + (f" on {where!r}" if where else ""))
+        if not bad:
+            value = self.domain.comm.allreduce(fem.assemble_scalar(fem.form(self.energy_internal)), op=MPI.SUM)
+            if not np.isfinite(value):
+                bad.append("the stored energy (material)")
+        return bad
 
     def volume_jacobian(self) -> ufl.core.expr.Expr:
         """:math:`J = \\det F` as a UFL expression (for inversion checks and output)."""

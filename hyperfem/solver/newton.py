@@ -16,6 +16,24 @@ What this adds to the DOLFINx class:
   residual norm instead, so tight residual tolerances are still met;
 * a line-search pre-check that shortens the Newton step until no quadrature
   point has :math:`J \le J_\text{min}` — steps that would invert elements are refused;
+* a convergence test that ends a solve at the floating-point floor: once
+  Newton stops making progress (:math:`\|r_k\| > \tfrac12\|r_{k-1}\|`) with
+  :math:`\|r_k\|` within :data:`ROUNDOFF_FACTOR` of the round-off estimate
+  :math:`\varepsilon\,\|\,|K|\,|x|\,\|` (machine epsilon times the size of the
+  assembled internal-force terms), the solve is *converged at round-off*
+  (``SolveRecord.reason_name == "CONVERGED_ROUNDOFF"``) instead of wandering
+  in noise until a lucky dip or ``snes_max_it``; a tolerance below that floor
+  draws a warning;
+* a boundary-increment predictor: when the prescribed boundary values moved
+  since the last solve, one linear solve with the tangent at the old state
+  and the increment as a lifted Dirichlet condition carries it into the
+  interior (instead of moving only the boundary nodes and squeezing the
+  first layer of cells);
+* the problem's :meth:`check_solution` after convergence (a spurious
+  stationary point of a mixed problem is reported as a failure);
+* clear errors: invalid PETSc options, a NaN residual at an admissible start
+  (a load or material that evaluates to NaN), Dirichlet conditions that leave
+  rigid-body motion free, exceptions raised inside SNES callbacks;
 * a :class:`SolveRecord` per solve (reason, iterations, residual history).
 
 The solver works with any *problem* object that provides (as
@@ -31,6 +49,7 @@ from __future__ import annotations
 
 import itertools
 import time
+import warnings
 import weakref
 from dataclasses import dataclass, field
 
@@ -43,8 +62,26 @@ from dolfinx import fem
 from dolfinx.la.petsc import _ghost_update
 
 from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.solver.constraints import unconstrained_rigid_modes
 
-__all__ = ["DEFAULT_PETSC_OPTIONS", "NewtonSolver", "SolveRecord"]
+__all__ = ["DEFAULT_PETSC_OPTIONS", "ROUNDOFF_FACTOR", "NewtonSolver", "RoundoffWarning", "SolveRecord"]
+
+ROUNDOFF_FACTOR = 100.0
+r"""A stagnating residual within this factor of :math:`\varepsilon\|\,|K||x|\,\|` is at the floor.
+
+Measured (``benchmarks/roundoff_floor.py``): once Newton has reached it, the
+noise band of the assembled residual sits at 0.09–3 times the estimate on the
+cantilever cases (P1/P2, dead and follower loads), so a factor 100 leaves a
+margin of 30 for other BLAS/MUMPS builds and ends those solves at the first
+stagnating iterate, while a residual this small is below :math:`10^{-10}` of
+the loads there."""
+
+CONVERGED_ROUNDOFF = int(PETSc.SNES.ConvergedReason.CONVERGED_ITS)
+"""SNES reason returned when the floor ends a solve (the record names it ``CONVERGED_ROUNDOFF``)."""
+
+
+class RoundoffWarning(UserWarning):
+    """The requested residual tolerance is below what floating point can resolve."""
 
 DEFAULT_PETSC_OPTIONS: dict[str, object] = {
     "snes_type": "newtonls",
@@ -64,7 +101,7 @@ _counter = itertools.count()
 
 @dataclass
 class SolveRecord:
-    """Outcome of one nonlinear solve.
+    r"""Outcome of one nonlinear solve.
 
     Attributes:
         converged: Whether SNES reported convergence.
@@ -75,6 +112,13 @@ class SolveRecord:
         residual_norms: Residual 2-norm at each Newton iterate (first: initial).
         wall_time: Seconds spent in the solve.
         min_J: Smallest quadrature-point volume ratio at the end of the solve.
+        roundoff_floor: Round-off estimate of the residual norm at the end
+            (``nan`` when the floor was never needed).
+        predictor: Whether the boundary-increment predictor ran.
+        inversion_cutbacks: Line-search steps halved to keep :math:`J > J_{\min}`.
+        roundoff_accepts: Steps the energy could not resolve, judged by the residual.
+        indicators: The problem's consistency indicators (:meth:`check_solution`).
+        message: Why a solve that SNES reported converged was rejected, or ``""``.
     """
 
     converged: bool
@@ -85,6 +129,12 @@ class SolveRecord:
     residual_norms: list[float] = field(default_factory=list)
     wall_time: float = 0.0
     min_J: float = float("nan")
+    roundoff_floor: float = float("nan")
+    predictor: bool = False
+    inversion_cutbacks: int = 0
+    roundoff_accepts: int = 0
+    indicators: dict = field(default_factory=dict)
+    message: str = ""
 
     def as_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -92,6 +142,8 @@ class SolveRecord:
 
 
 def _reason_name(reason: int) -> str:
+    if reason == CONVERGED_ROUNDOFF:
+        return "CONVERGED_ROUNDOFF"
     for name in dir(PETSc.SNES.ConvergedReason):
         if not name.startswith("_") and getattr(PETSc.SNES.ConvergedReason, name) == reason:
             return name
@@ -113,6 +165,17 @@ class NewtonSolver:
             the residual norm instead of the energy.
         min_jacobian: Smallest admissible :math:`J` at quadrature points; the
             line-search step is shortened until it holds. ``None`` disables it.
+        predictor: Carry a change of the prescribed boundary values into the
+            interior with one tangent solve before Newton starts.
+        roundoff_factor: See :data:`ROUNDOFF_FACTOR`; ``0`` disables the
+            round-off stop (plain SNES tolerances).
+        check_rigid_motion: Refuse Dirichlet conditions that leave a
+            rigid-body motion free (the tangent is singular). Problems with
+            ``rigid_motion_resisted`` (inertia) are not checked.
+
+    Raises:
+        ParameterError: Invalid PETSc options, a bad prefix, or Dirichlet
+            conditions that leave rigid-body motion unconstrained.
     """
 
     def __init__(
@@ -124,6 +187,9 @@ class NewtonSolver:
         energy_line_search: bool | None = None,
         energy_roundoff_rtol: float = 1e-9,
         min_jacobian: float | None = 1e-6,
+        predictor: bool = True,
+        roundoff_factor: float = ROUNDOFF_FACTOR,
+        check_rigid_motion: bool = True,
         form_compiler_options: dict | None = None,
         jit_options: dict | None = None,
     ):
@@ -135,6 +201,13 @@ class NewtonSolver:
         if not prefix.endswith("_"):
             raise ParameterError(f"NewtonSolver: options prefix must end with '_', got {prefix!r}")
         self.prefix = prefix
+        if check_rigid_motion and not getattr(problem, "rigid_motion_resisted", False):
+            free = unconstrained_rigid_modes(problem)
+            if free:
+                raise ParameterError(
+                    f"NewtonSolver: the Dirichlet conditions leave rigid-body motion unconstrained "
+                    f"({', '.join(free)}); the tangent is singular — add a Clamp or PrescribedDisplacement"
+                )
         defaults = dict(DEFAULT_PETSC_OPTIONS)
         if not problem.conservative:
             # No energy to judge steps by. Measured on the twist case (P2,
@@ -142,19 +215,24 @@ class NewtonSolver:
             # (unsafeguarded); 'cp' is the safeguarded choice.
             defaults["snes_linesearch_type"] = "cp"
         self.options = {**defaults, **(petsc_options or {})}
-        self._nlp = fpetsc.NonlinearProblem(
-            problem.residual,
-            problem.u,
-            bcs=problem.bcs,
-            J=problem.jacobian,
-            petsc_options_prefix=prefix,
-            petsc_options=self.options,
-            form_compiler_options=form_compiler_options,
-            jit_options=jit_options,
-        )
+        try:
+            self._nlp = fpetsc.NonlinearProblem(
+                problem.residual,
+                problem.u,
+                bcs=problem.bcs,
+                J=problem.jacobian,
+                petsc_options_prefix=prefix,
+                petsc_options=self.options,
+                form_compiler_options=form_compiler_options,
+                jit_options=jit_options,
+            )
+        except PETSc.Error as exc:
+            self._clean_options()
+            raise ParameterError(f"NewtonSolver: {self._describe_option_error(exc, petsc_options or {})}") from None
         snes = self._nlp.solver
         self.snes = snes
         self._norms: list[float] = []
+        self._callback_error: BaseException | None = None
         # Callbacks hold the solver weakly: a strong reference from the SNES
         # back to self would be a cycle through PETSc that Python never frees
         # (leaking the factorisation), or frees at different times per rank.
@@ -176,7 +254,7 @@ class NewtonSolver:
         self._ref: tuple[float, float] | None = None
         self.roundoff_accepts = 0
         if energy_line_search:
-            snes.setObjective(lambda snes_, x: me()._objective(snes_, x))
+            snes.setObjective(lambda snes_, x: me()._guarded(me()._objective, snes_, x))
 
         self.min_jacobian = min_jacobian
         self._work = self._nlp.x.duplicate()
@@ -187,7 +265,45 @@ class NewtonSolver:
         self._cells = np.arange(imap.size_local, dtype=np.int32)
         self.inversion_cutbacks = 0
         if min_jacobian is not None:
-            snes.setLineSearchPreCheck(lambda x, y: me()._precheck(x, y))
+            snes.setLineSearchPreCheck(lambda x, y: me()._guarded(me()._precheck, x, y))
+
+        self.predictor = bool(predictor)
+        self.roundoff_factor = float(roundoff_factor)
+        self._abs_jacobian: PETSc.Mat | None = None
+        self._floor = float("nan")
+        self._roundoff_stop = False
+        self._warned_floor = False
+        snes.setConvergenceTest(lambda snes_, it, norms: me()._guarded(me()._converged, snes_, it, norms))
+
+    # -- errors ------------------------------------------------------------
+    def _clean_options(self) -> None:
+        """Undo what a failed ``NonlinearProblem`` construction left in PETSc's options database."""
+        opts = PETSc.Options()
+        try:
+            opts.prefixPop()
+        except PETSc.Error:
+            pass
+        for key in self.options:
+            opts.delValue(f"-{self.prefix}{key}")
+
+    @staticmethod
+    def _describe_option_error(exc: PETSc.Error, user: dict) -> str:
+        ierr = getattr(exc, "ierr", None)
+        typed = {k: v for k, v in user.items() if str(k).endswith("_type")}
+        if ierr == 86 and typed:  # PETSC_ERR_UNKNOWN_TYPE
+            listed = ", ".join(f"{k} = {v!r}" for k, v in typed.items())
+            return f"PETSc rejected an unknown type among the options {listed} (error {ierr})"
+        listed = ", ".join(f"{k} = {v!r}" for k, v in user.items()) or "(defaults only)"
+        return f"PETSc rejected the options {listed} (error {ierr})"
+
+    def _guarded(self, callback, *args):
+        """Run a SNES callback; keep a Python exception so :meth:`solve` can re-raise it."""
+        try:
+            return callback(*args)
+        except Exception as exc:  # re-raised by solve(); PETSc only sees an error code
+            if self._callback_error is None:
+                self._callback_error = exc
+            raise
 
     # -- callbacks -------------------------------------------------------
     def _set_state(self, x: PETSc.Vec) -> None:
@@ -231,6 +347,67 @@ class NewtonSolver:
             return ref + predicted
         return value
 
+    def roundoff_floor(self) -> float:
+        """Round-off estimate :math:`\\varepsilon\\,\\|\\,|K|\\,|x|\\,\\|` of the residual norm.
+
+        :math:`|K|` is the entrywise absolute value of the last assembled
+        tangent (with the Dirichlet rows), :math:`|x|` of the current state:
+        every term summed into a residual entry is bounded by the
+        corresponding entry of :math:`|K||x|` for a linear response, and a
+        state is only known to :math:`\\varepsilon|x|`.
+        """
+        A = self.snes.getJacobian()[0]
+        if self._abs_jacobian is None:
+            self._abs_jacobian = A.duplicate(copy=True)
+        else:
+            A.copy(self._abs_jacobian, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        B = self._abs_jacobian
+        ai, aj, av = B.getValuesCSR()
+        B.setValuesCSR(ai, aj, np.abs(av))
+        B.assemble()
+        x = self._work
+        self.snes.getSolution().copy(x)
+        x.abs()
+        y = self._residual_work
+        B.mult(x, y)
+        return float(np.finfo(float).eps * y.norm())
+
+    def _floor_bound(self) -> float:
+        r"""Cheap upper bound :math:`\varepsilon\|K\|_F\|x\|_2` of :meth:`roundoff_floor` (no copy)."""
+        A = self.snes.getJacobian()[0]
+        return float(np.finfo(float).eps * A.norm(PETSc.NormType.FROBENIUS) * self.snes.getSolution().norm())
+
+    def _converged(self, snes: PETSc.SNES, it: int, norms) -> int:
+        """SNES convergence test: PETSc's default criteria, then the round-off floor."""
+        xnorm, snorm, fnorm = (float(v) for v in norms)
+        rtol, atol, stol, _ = snes.getTolerances()
+        R = PETSc.SNES.ConvergedReason
+        if it == 0:
+            self._ttol = max(atol, rtol * fnorm)
+            self._fnorm0 = fnorm
+            self._fnorms = [fnorm]
+        if not np.isfinite(fnorm):
+            return int(R.DIVERGED_FUNCTION_NANORINF)
+        if fnorm < atol:
+            return int(R.CONVERGED_FNORM_ABS)
+        if it == 0:
+            return int(R.ITERATING)
+        if fnorm <= self._ttol:
+            return int(R.CONVERGED_FNORM_RELATIVE)
+        if snorm < stol * xnorm:
+            return int(R.CONVERGED_SNORM_RELATIVE)
+        divtol = snes.getDivergenceTolerance()
+        if divtol > 0 and fnorm > divtol * self._fnorm0:
+            return int(R.DIVERGED_DTOL)
+        previous = self._fnorms[-1] if self._fnorms else np.inf
+        self._fnorms.append(fnorm)
+        if self.roundoff_factor > 0 and fnorm > 0.5 * previous and fnorm <= self.roundoff_factor * self._floor_bound():
+            self._floor = self.roundoff_floor()
+            if fnorm <= self.roundoff_factor * self._floor:
+                self._roundoff_stop = True
+                return CONVERGED_ROUNDOFF
+        return int(R.ITERATING)
+
     def min_J(self) -> float:
         """Smallest :math:`J` over all quadrature points at the current state."""
         vals = self._J_expr.eval(self.problem.domain.mesh, self._cells)
@@ -249,6 +426,59 @@ class NewtonSolver:
             self.inversion_cutbacks += 1
         self._set_state(x)
 
+    # -- predictor -------------------------------------------------------
+    def _boundary_moved(self) -> bool:
+        u = self.problem.u
+        moved = u.x.array.copy()
+        for bc in self.problem.bcs:
+            bc.set(moved)
+        local = not np.array_equal(moved, u.x.array)
+        return bool(self.comm.allreduce(local, op=MPI.LOR))
+
+    def _lift_boundary_increment(self) -> bool:
+        r"""Move the state by the tangent response to the boundary increment.
+
+        Solves :math:`K(u_n)\,\delta u = 0` in the interior with
+        :math:`\delta u = g_{n+1} - u_n` on the Dirichlet dofs (a lifted
+        condition), using the solver's own assembly and linear solver, and
+        applies the largest fraction :math:`2^{-k}` of it that keeps
+        :math:`J > J_\min`. Returns whether a step was applied.
+        """
+        nlp = self._nlp
+        bcs = self.problem.bcs
+        x = self._work
+        self.problem.u.x.petsc_vec.copy(x)
+        A = nlp.A
+        A.zeroEntries()
+        fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)
+        A.assemble()
+        b = self._residual_work
+        with b.localForm() as loc:
+            loc.set(0.0)
+        fpetsc.apply_lifting(b, [nlp.J], bcs=[bcs], x0=[x], alpha=1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
+        du = x.duplicate()
+        ksp = self.snes.getKSP()
+        ksp.setOperators(A, A)
+        ksp.solve(b, du)
+        ok = ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))
+        applied = False
+        if ok:
+            scale = 1.0
+            for _ in range(8):
+                self._set_state(x)
+                self.problem.u.x.petsc_vec.axpy(scale, du)
+                self.problem.u.x.scatter_forward()
+                if self.min_jacobian is None or self.min_J() > self.min_jacobian:
+                    applied = True
+                    break
+                scale *= 0.5
+            if not applied:
+                self._set_state(x)
+        du.destroy()
+        return applied
+
     # -- solve -------------------------------------------------------------
     def solve(self, raise_on_failure: bool = False) -> SolveRecord:
         """Solve for the current loads, starting from the current displacement.
@@ -259,12 +489,26 @@ class NewtonSolver:
 
         Returns:
             The :class:`SolveRecord`.
+
+        Raises:
+            ParameterError: The residual is NaN/inf at the (admissible)
+                starting state: a load, prescribed value or material
+                evaluates to NaN.
+            Exception: Whatever a SNES callback (objective, pre-check,
+                convergence test) raised.
         """
         self._norms = []
         self._ref = None
+        self._floor = float("nan")
+        self._roundoff_stop = False
+        self._callback_error = None
+        cutbacks0, accepts0 = self.inversion_cutbacks, self.roundoff_accepts
         snes = self.snes
         start = time.perf_counter()
         u = self.problem.u
+        predicted = False
+        if self.predictor and self._boundary_moved():
+            predicted = self._lift_boundary_increment()
         # Start from a state that satisfies the Dirichlet conditions, so the
         # Newton direction has no boundary components and the energy line
         # search sees only admissible states.
@@ -272,29 +516,73 @@ class NewtonSolver:
             bc.set(u.x.array)
         u.x.scatter_forward()
         reason = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
+        message = ""
         if self.min_jacobian is None or self.min_J() > self.min_jacobian:
             try:
                 self._nlp.solve()
                 reason = int(snes.getConvergedReason())
-            except PETSc.Error:
+            except PETSc.Error as exc:
+                if self._callback_error is not None:
+                    raise self._callback_error from None
                 reason = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
+                message = f"PETSc error {getattr(exc, 'ierr', '?')} during the solve"
+        else:
+            message = f"start state has J <= {self.min_jacobian:g}"
         u.x.scatter_forward()
+        iterations = int(snes.getIterationNumber())
+        if self._roundoff_stop and not self._warned_floor and self._ttol < self._floor:
+            self._warned_floor = True  # once per solver
+            if self.comm.rank == 0:
+                warnings.warn(
+                    f"NewtonSolver: residual tolerance {self._ttol:.3g} is below the round-off floor "
+                    f"{self._floor:.3g} of this problem; stopped at |r| = {self._norms[-1]:.3g} "
+                    "(converged at round-off)",
+                    RoundoffWarning,
+                    stacklevel=2,
+                )
+        if reason == int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF) and iterations == 0:
+            # NaN/inf at an admissible start (J > J_min checked above): bad input, not a hard step.
+            raise ParameterError(self._nan_message())
+        indicators: dict[str, float] = {}
+        if reason > 0:
+            indicators, why = self.problem.check_solution()
+            if why:
+                message = why
+                reason = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
         wall = time.perf_counter() - start
         minJ = self.min_J()
         record = SolveRecord(
             converged=reason > 0 and bool(np.isfinite(minJ)),
             reason=reason,
             reason_name=_reason_name(reason),
-            iterations=int(snes.getIterationNumber()),
+            iterations=iterations,
             linear_iterations=int(snes.getLinearSolveIterations()),
             residual_norms=list(self._norms),
             wall_time=wall,
             min_J=minJ,
+            roundoff_floor=self._floor,
+            predictor=predicted,
+            inversion_cutbacks=self.inversion_cutbacks - cutbacks0,
+            roundoff_accepts=self.roundoff_accepts - accepts0,
+            indicators=indicators,
+            message=message,
         )
         if raise_on_failure and not record.converged:
+            detail = f": {message}" if message else ""
             raise ConvergenceError(
                 f"Newton solve did not converge: {record.reason_name} after {record.iterations} iterations "
-                f"(load factor {self.problem.load_factor:g})",
+                f"(load factor {self.problem.load_factor:g}){detail}",
                 load_factor=self.problem.load_factor,
             )
         return record
+
+    def _nan_message(self) -> str:
+        where = f"load factor {self.problem.load_factor:g}"
+        find = getattr(self.problem, "nonfinite_terms", None)
+        names = find() if find is not None else []
+        if names:
+            return f"NewtonSolver: residual is NaN/inf at the start of the solve ({where}); non-finite term(s): {', '.join(names)}"
+        return (
+            f"NewtonSolver: residual is NaN/inf at the start of the solve ({where}); a load, prescribed value "
+            "or the material evaluates to NaN/inf"
+        )

@@ -10,10 +10,12 @@ last load factor reached; completed steps have already been handed to the
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.materials.parameters import check_positive
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 
 __all__ = ["LoadStepping", "StepRecord", "solve_quasistatic"]
@@ -41,6 +43,12 @@ class LoadStepping:
     max_steps: int = 10000
 
     def __post_init__(self) -> None:
+        for name in ("initial_increment", "min_increment", "max_increment", "growth"):
+            check_positive(name, getattr(self, name), "LoadStepping")
+        for name in ("easy_iterations", "max_steps"):
+            value = getattr(self, name)
+            if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
+                raise ParameterError(f"LoadStepping: {name} must be an integer >= 1, got {value!r}")
         if not 0 < self.min_increment <= self.initial_increment <= self.max_increment:
             raise ParameterError(
                 "LoadStepping: need 0 < min_increment <= initial_increment <= max_increment, got "
