@@ -1,4 +1,10 @@
-r"""Mixed u–p (Taylor–Hood) formulation: Taylor tests of the tangent, and locking.
+r"""Mixed three-field formulation: Taylor tests of the tangent, equivalence, and locking.
+
+Equivalence. For :math:`U = \frac{K}{2}(J-1)^2` the three-field form
+:math:`\int\psi_\text{iso} + U(\theta) + p(J - \theta)` has the same solutions as
+the u–p form :math:`\int\psi_\text{iso} + p(J-1) - p^2/(2K)` (eliminate
+:math:`\theta = 1 + p/K` exactly in the common :math:`P_1` space): its solution makes
+the u–p residual vanish.
 
 Locking. In uniaxial stretch :math:`\ell` of an incompressible solid with free
 lateral faces the lateral displacement per unit width is :math:`1/\sqrt\ell - 1`.
@@ -17,6 +23,7 @@ from __future__ import annotations
 
 import math
 
+import basix.ufl
 import numpy as np
 import pytest
 import ufl
@@ -97,7 +104,8 @@ def _assert_second_order(e):
     assert np.all(rates > 1.8), rates
 
 
-def test_taylor_mixed_muscle():
+@pytest.mark.parametrize("law", ["log", "simo_taylor"])
+def test_taylor_mixed_muscle(law):
     """Mixed muscle energy (active, fibres at an angle): the tangent is the derivative of the residual."""
     domain = _box(n=(2, 1, 1))
     mesh = domain.mesh
@@ -105,21 +113,25 @@ def test_taylor_mixed_muscle():
     p = MuscleParameters.muscle(K=60e4)
     a0 = ufl.as_vector([1 / math.sqrt(2), 1 / math.sqrt(2), 0.0])
     problem = MixedHyperelasticProblem(
-        domain, SplitEnergy(lambda F: muscle_isochoric(F, a0, act.expr, p), p.K), degree=2, updaters=[act]
+        domain, SplitEnergy(lambda F: muscle_isochoric(F, a0, act.expr, p), p.K, law), degree=2, updaters=[act]
     )
     W = problem.W
     coeffs = np.random.default_rng(1).uniform(-0.15, 0.15, (3, 4))
     state, direction = fem.Function(W), fem.Function(W)
-    Vu, Vp = W.sub(0).collapse(), W.sub(1).collapse()
-    ustate, pstate = fem.Function(Vu[0]), fem.Function(Vp[0])
+    Vu, Vp, Vt = W.sub(0).collapse(), W.sub(1).collapse(), W.sub(2).collapse()
+    ustate, pstate, tstate = fem.Function(Vu[0]), fem.Function(Vp[0]), fem.Function(Vt[0])
     ustate.interpolate(lambda x: _smooth(x, coeffs))
     pstate.interpolate(lambda x: 2e4 * np.cos(x[0] + 2 * x[1]))
+    tstate.interpolate(lambda x: 0.1 * np.sin(2 * x[0] - x[2]))  # theta - 1
     state.x.array[Vu[1]] = ustate.x.array
     state.x.array[Vp[1]] = pstate.x.array
+    state.x.array[Vt[1]] = tstate.x.array
     ustate.interpolate(lambda x: _smooth(x, coeffs[::-1]))
     pstate.interpolate(lambda x: 1e4 * np.sin(x[2] + x[0]))
+    tstate.interpolate(lambda x: 0.2 * np.cos(x[1] + x[0]))
     direction.x.array[Vu[1]] = ustate.x.array
     direction.x.array[Vp[1]] = pstate.x.array
+    direction.x.array[Vt[1]] = tstate.x.array
     _assert_second_order(_taylor_remainders(problem, state, direction))
 
 
@@ -142,10 +154,65 @@ def test_taylor_displacement_muscle_p2():
 def test_split_energy_validation():
     with pytest.raises(ParameterError, match="bulk_modulus"):
         SplitEnergy(lambda F: ufl.tr(F), 0.0)
-    with pytest.raises(ParameterError, match="not of the form"):
-        SplitEnergy(lambda F: ufl.tr(F), 1.0, "simo_taylor").mixed_energy(ufl.Identity(3), 0.0)
+    with pytest.raises(ParameterError, match="volumetric law"):
+        SplitEnergy(lambda F: ufl.tr(F), 1.0, "cubic")
     with pytest.raises(ParameterError, match="formulation"):
         solid_problem(None, SplitEnergy(lambda F: ufl.tr(F), 1.0), formulation="enhanced")
+
+
+@pytest.mark.parametrize("law", ["log", "quadratic", "simo_taylor"])
+def test_mixed_energy_reduces_to_energy(law):
+    """Pointwise, with theta = J the three-field density is the displacement energy for any p."""
+    mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1, dmesh.CellType.tetrahedron)
+    F = ufl.as_matrix([[1.3, 0.1, 0.0], [0.05, 0.9, 0.2], [0.0, -0.1, 0.85]])
+    m = SplitEnergy(_neo_hookean(1.0, 50.0).isochoric, 50.0, law)
+    J = ufl.det(F)
+    form = fem.form((m.mixed_energy(F, 7.0, J) - m.energy(F)) ** 2 * ufl.dx(domain=mesh))
+    assert MPI.COMM_WORLD.allreduce(fem.assemble_scalar(form)) < 1e-24
+
+
+def test_quadratic_law_is_the_up_form():
+    """U = K/2 (J-1)^2: the three-field solution of the gripped bar solves the two-field u-p equations."""
+    mu, K, lam, L, w = 1.0, 1e3, 1.2, 3.0, 0.5
+    domain = _box(L=L, w=w, n=(6, 1, 1))
+    bcs = [
+        hf.Clamp("x0"),
+        hf.PrescribedDisplacement("x1", [(lam - 1.0) * L], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
+    ]
+    material = SplitEnergy(_neo_hookean(mu, K).isochoric, K, "quadratic")
+    problem = solid_problem(domain, material, bcs=bcs)
+    u_h, p_h = _stretch(problem, lam, L, 2), problem.pressure
+    # theta = 1 + p/K exactly: both live in P1
+    theta = problem.volume.x.array
+    assert np.max(np.abs(theta - 1.0 - p_h.x.array / K), initial=0.0) < 1e-12
+
+    mesh = domain.mesh
+    cell = mesh.basix_cell()
+    el_u = basix.ufl.element("Lagrange", cell, 2, shape=(3,))
+    W = fem.functionspace(mesh, basix.ufl.mixed_element([el_u, basix.ufl.element("Lagrange", cell, 1)]))
+    w_h = fem.Function(W)
+    for i, field in enumerate((u_h, p_h)):
+        V, dofs = W.sub(i).collapse()
+        copy = fem.Function(V)
+        copy.interpolate(field)
+        w_h.x.array[dofs] = copy.x.array
+    u, p = ufl.split(w_h)
+    F = ufl.Identity(3) + ufl.grad(u)
+    Pi = (material.isochoric(F) + p * (ufl.det(F) - 1.0) - p**2 / (2.0 * K)) * ufl.dx(
+        metadata={"quadrature_degree": problem.quadrature_degree}
+    )
+    b = fpetsc.assemble_vector(fem.form(ufl.derivative(Pi, w_h, ufl.TestFunction(W))))
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    fixed = {"x0": (0, 1, 2), "x1": (0,), "y0": (1,), "z0": (2,)}
+    owned = b.getLocalSize()
+    for name, components in fixed.items():
+        for c in components:
+            dofs = fem.locate_dofs_topological(W.sub(0).sub(c), 2, domain.facets(name))
+            b.array[dofs[dofs < owned]] = 0.0
+    assert b.norm() < 1e-8
+    b.destroy()
 
 
 def _lateral_stretch_compressible(lam, mu, K):
@@ -206,8 +273,9 @@ def test_uniaxial_cube_homogeneous(K):
 def test_locking_gripped_bar():
     """K/mu = 1e3, bar 3 x 1 x 1 (quarter model), gripped at x = 0, stretched to l = 1.2.
 
-    Measured: Taylor-Hood free-end lateral displacement -0.0903 (exact homogeneous
-    limit -0.0871, 3.6 %); P1 on the same mesh -0.0293 (locked, a third of it).
+    Measured: three-field P2/P1/P1 free-end lateral displacement -0.0904 (exact
+    homogeneous limit -0.0871, 3.8 %; the old two-field ln J form gave -0.0903);
+    P1 on the same mesh -0.0293 (locked, a third of it).
     """
     mu, K, lam, L, w = 1.0, 1e3, 1.2, 3.0, 0.5
     domain = _box(L=L, w=w, n=(6, 1, 1))

@@ -8,10 +8,10 @@ Each law is penalised by the bulk modulus :math:`K` and satisfies
 * ``"quadratic"``: :math:`U = \frac{K}{2} (J - 1)^2`,
 * ``"simo_taylor"``: :math:`U = \frac{K}{4} (J^2 - 1 - 2 \ln J)`.
 
-The first two have the form :math:`U = \frac{K}{2} g(J)^2`, which the mixed
-displacement–pressure formulation uses as
-:math:`\Pi(u, p) = \int \psi_\text{iso} + p\, g(J) - p^2/(2K)`; eliminating
-:math:`p = K g(J)` gives back :math:`U(J)`.
+The pure displacement formulation evaluates :math:`U(\det F)`; the mixed
+three-field formulation (:class:`~hyperfem.problem.MixedHyperelasticProblem`)
+evaluates :math:`U(\theta)` on a volume field :math:`\theta` that is the
+:math:`L^2` projection of :math:`J`, so every law can be used with either.
 """
 
 from __future__ import annotations
@@ -34,20 +34,16 @@ class VolumetricLaw:
 
     Attributes:
         name: Key in :data:`VOLUMETRIC_LAWS`.
-        energy: ``energy(J, K) -> U``.
-        pressure_measure: :math:`g(J)` with :math:`U = \\tfrac{K}{2} g^2`, or
-            ``None`` if the law is not of that form (then it cannot be used
-            by the mixed formulation).
+        energy: ``energy(J, K) -> U`` (a UFL expression).
     """
 
     name: str
     energy: Callable[[Expr, Expr | float], Expr]
-    pressure_measure: Callable[[Expr], Expr] | None = None
 
 
 VOLUMETRIC_LAWS: dict[str, VolumetricLaw] = {
-    "log": VolumetricLaw("log", lambda J, K: 0.5 * K * ufl.ln(J) ** 2, ufl.ln),
-    "quadratic": VolumetricLaw("quadratic", lambda J, K: 0.5 * K * (J - 1.0) ** 2, lambda J: J - 1.0),
+    "log": VolumetricLaw("log", lambda J, K: 0.5 * K * ufl.ln(J) ** 2),
+    "quadratic": VolumetricLaw("quadratic", lambda J, K: 0.5 * K * (J - 1.0) ** 2),
     "simo_taylor": VolumetricLaw("simo_taylor", lambda J, K: 0.25 * K * (J**2 - 1.0 - 2.0 * ufl.ln(J))),
 }
 """Available volumetric laws by name."""
@@ -68,7 +64,7 @@ def volumetric_energy(J: Expr, K: Expr | float, law: str = "log") -> Expr:
     r"""Volumetric energy :math:`U(J)` of the named law (default :math:`\frac{K}{2}(\ln J)^2`).
 
     Args:
-        J: Volume ratio :math:`\det F`.
+        J: Volume ratio :math:`\det F` (or the volume field :math:`\theta` of the mixed formulation).
         K: Bulk modulus.
         law: Name of the law, see :data:`VOLUMETRIC_LAWS`.
     """

@@ -1,30 +1,49 @@
-r"""Mixed displacement–pressure (u–p) formulation for nearly incompressible solids.
+r"""Three-field (Hu–Washizu) formulation for nearly incompressible solids.
 
-With the energy split :math:`\psi = \psi_\text{iso}(F) + \frac{K}{2} g(J)^2`
-(:math:`g = \ln J` or :math:`J - 1`), the perturbed-Lagrangian functional
+With the energy split :math:`\psi = \psi_\text{iso}(F) + U(J)` the unknowns are the
+displacement :math:`u`, a pressure :math:`p` and a volume ratio :math:`\theta`
+(Simo, Taylor & Pister 1985), and
 
 .. math::
-    \Pi(u, p) = \sum_r \int_{\Omega_r} \Big[\psi_{\text{iso},r}(F) + p\, g_r(J)
-        - \frac{p^2}{2K_r}\Big]\,dX - W_\text{dead}(u)
+    \Pi(u, p, \theta) = \sum_r \int_{\Omega_r} \Big[\psi_{\text{iso},r}(F) + U_r(\theta)
+        + p\,(J - \theta)\Big]\,dX - W_\text{dead}(u)
 
-is made stationary over Taylor–Hood :math:`P_2/P_1` (by default) displacement
-and pressure. Eliminating :math:`p = K g(J)` pointwise recovers the
-displacement energy; discretely the pressure is continuous and of lower
-degree, so large :math:`K` no longer locks the displacement. Residual and
-tangent are ``ufl.derivative`` of :math:`\Pi` with respect to the mixed
-unknown :math:`w = (u, p)`.
+is made stationary over :math:`P_2` displacements and :math:`P_1` pressure and
+volume (by default; Taylor–Hood plus a volume field in the pressure space).
+Stationarity in :math:`p` makes :math:`\theta` the :math:`L^2` projection of
+:math:`J`, and in :math:`\theta` makes :math:`p` the projection of
+:math:`U'(\theta)`; eliminating both pointwise gives back :math:`\psi_\text{iso} +
+U(J)`. The constraint is *linear* in :math:`J`, so the constant test function
+keeps :math:`\int_\Omega J\,dX = \int_\Omega\theta\,dX` exactly, and :math:`U` is
+evaluated on the smooth :math:`\theta`; any volumetric law works. For
+:math:`U = \frac{K}{2}(J-1)^2` it is algebraically the u–p form
+:math:`\int\psi_\text{iso} + p(J-1) - p^2/(2K)`.
+
+The previous two-field form :math:`\int\psi_\text{iso} + p\ln J - p^2/(2K)` tested
+:math:`\ln J = p/K` only against the :math:`P_1` pressures, so :math:`J` could
+oscillate inside the cells at unchanged :math:`\int q\ln J` while, :math:`\ln` being
+concave, :math:`\int J` grew: volume came for free and lowered the isochoric
+energy of a stretched body. At stretch 2 the homogeneous state of a 4×4×4 cube
+was a saddle of that discrete problem, and Newton converged to a lower,
+non-homogeneous state with :math:`\int J\,dX = 1.07` (:math:`K/\mu = 10^3`).
 
 :class:`MixedHyperelasticProblem` satisfies the solver protocol of
-:class:`~hyperfem.solver.NewtonSolver`: ``u`` is the *mixed* function, the
-displacement is :attr:`~MixedHyperelasticProblem.displacement` (call
-:meth:`~MixedHyperelasticProblem.update_fields`). Because :math:`\Pi` is a
-saddle point in :math:`p`, it cannot be a line-search merit function, so the
-problem reports ``conservative = False`` and the solver uses a residual-based
-line search.
+:class:`~hyperfem.solver.NewtonSolver`: ``u`` is the *mixed* function
+:math:`w = (u, p, \theta - 1)` (the volume block stores the dilatation, so
+:math:`w = 0` is the reference state), the displacement is
+:attr:`~MixedHyperelasticProblem.displacement` (call
+:meth:`~MixedHyperelasticProblem.update_fields`). Residual and tangent are
+``ufl.derivative`` of :math:`\Pi`. Because :math:`\Pi` is a saddle point in
+:math:`p`, it cannot be a line-search merit function, so the problem reports
+``conservative = False`` and the solver uses a residual-based line search.
+:meth:`~MixedHyperelasticProblem.check_solution` flags converged states whose
+:math:`J` is far from its projection :math:`\theta` (see
+:data:`VOLUME_CONSISTENCY_LIMIT`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -41,10 +60,33 @@ from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDir
 from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.loads import Load
+from hyperfem.problem.validation import check_energy_callable
 
-__all__ = ["MixedHyperelasticProblem", "ReactionForce", "SplitEnergy", "solid_problem"]
+__all__ = [
+    "VOLUME_CONSISTENCY_LIMIT",
+    "MixedHyperelasticProblem",
+    "ReactionForce",
+    "SplitEnergy",
+    "solid_problem",
+]
 
 Expr = ufl.core.expr.Expr
+
+VOLUME_CONSISTENCY_LIMIT = 0.1
+r"""Largest accepted :math:`\eta = \big(\int(J - \theta)^2\,dX / \int dX\big)^{1/2}` of a converged state.
+
+Measured on correct solutions: :math:`< 10^{-9}` for homogeneous stretch and
+compression of a cube (any mesh, any law); 0.020 (0.012, 0.006 on meshes 2×
+and 4× finer) for the gripped bar of ``tests/test_mixed.py`` at stretch 1.2,
+0.046 for the same bar at stretch 2 (0.029 on 12×2×2), which is dominated by
+the singular grip edge; up to 0.023 in the muscle demo (0.034 with ``--h
+0.008``). On the spurious states of the old two-field :math:`\ln J` form at
+stretch 2: 0.41 (4×4×4), 0.34 (8×8×8), with :math:`J` projected onto the
+volume space. The limit sits a factor of two above the largest correct value
+and a factor of three below the smallest spurious one. In between: 0.098 for
+a cube compressed to 0.5 on 4×4×4 that left the homogeneous branch past its
+(physical) stability limit, a buckled state the mesh cannot resolve.
+"""
 
 
 @dataclass(frozen=True)
@@ -54,8 +96,8 @@ class SplitEnergy:
     Attributes:
         isochoric: :math:`\psi_\text{iso}(F)` (a function of the deformation gradient).
         bulk_modulus: :math:`K > 0`.
-        volumetric: Volumetric law name; the mixed formulation needs one of
-            the form :math:`\frac{K}{2} g(J)^2` (``"log"``, ``"quadratic"``).
+        volumetric: Volumetric law name (any of
+            :data:`~hyperfem.materials.volumetric.VOLUMETRIC_LAWS`).
     """
 
     isochoric: Callable[[Expr], Expr]
@@ -64,25 +106,28 @@ class SplitEnergy:
 
     def __post_init__(self) -> None:
         check_positive("bulk_modulus", self.bulk_modulus, "SplitEnergy")
+        check_energy_callable(self.isochoric, "SplitEnergy isochoric part")
         volumetric_law(self.volumetric)
 
-    def energy(self, F: Expr) -> Expr:
-        """The full energy :math:`\\psi(F)` (for the pure displacement formulation)."""
-        return self.isochoric(F) + volumetric_law(self.volumetric).energy(ufl.det(F), self.bulk_modulus)
+    def volumetric_energy(self, J: Expr) -> Expr:
+        """:math:`U(J)` of the volumetric law (``J`` may be :math:`\\det F` or the volume field :math:`\\theta`)."""
+        return volumetric_law(self.volumetric).energy(J, self.bulk_modulus)
 
-    def mixed_energy(self, F: Expr, p: Expr) -> Expr:
-        r""":math:`\psi_\text{iso}(F) + p\,g(J) - p^2/(2K)`."""
-        g = volumetric_law(self.volumetric).pressure_measure
-        if g is None:
-            raise ParameterError(
-                f"SplitEnergy: volumetric law {self.volumetric!r} is not of the form K/2 g(J)^2; "
-                "use 'log' or 'quadratic' with the mixed formulation"
-            )
-        return self.isochoric(F) + p * g(ufl.det(F)) - p**2 / (2.0 * self.bulk_modulus)
+    def energy(self, F: Expr) -> Expr:
+        """The full energy :math:`\\psi(F) = \\psi_\\text{iso}(F) + U(\\det F)` (displacement formulation)."""
+        return self.isochoric(F) + self.volumetric_energy(ufl.det(F))
+
+    def mixed_energy(self, F: Expr, p: Expr, theta: Expr) -> Expr:
+        r"""Three-field density :math:`\psi_\text{iso}(F) + U(\theta) + p\,(\det F - \theta)`.
+
+        At fixed :math:`p, \theta` its derivative in :math:`F` is the first
+        Piola–Kirchhoff stress :math:`\partial_F\psi_\text{iso} + p\,\operatorname{cof}F`.
+        """
+        return self.isochoric(F) + self.volumetric_energy(theta) + p * (ufl.det(F) - theta)
 
 
 class MixedHyperelasticProblem(EnergyProblem):
-    """Taylor–Hood u–p problem of a nearly incompressible body.
+    r"""Three-field :math:`(u, p, \theta)` problem of a nearly incompressible body.
 
     Args:
         domain: Mesh with named groups.
@@ -92,16 +137,19 @@ class MixedHyperelasticProblem(EnergyProblem):
         loads: External loads (dead and follower), as for
             :class:`~hyperfem.problem.HyperelasticProblem`.
         degree: Displacement degree (default 2).
-        pressure_degree: Pressure degree (default ``degree - 1``; Taylor–Hood).
+        pressure_degree: Degree of the pressure and the volume field (default
+            ``degree - 1``; Taylor–Hood).
         quadrature_degree: Default :func:`~hyperfem.problem.default_quadrature_degree` of ``degree``.
         updaters: Objects with ``update(s)`` called by :meth:`set_load_factor`
             (e.g. :class:`~hyperfem.activation.Activation`).
 
     Attributes:
-        u: The mixed unknown :math:`w = (u, p)` (what the solver updates).
-        displacement, pressure: Collapsed copies, refreshed by :meth:`update_fields`.
+        u: The mixed unknown :math:`w = (u, p, \theta - 1)` (what the solver updates).
+        displacement, pressure, volume: Collapsed copies of :math:`u, p, \theta`,
+            refreshed by :meth:`update_fields`.
         F: Deformation gradient (UFL, from the displacement block).
         p: Pressure (UFL, from the pressure block).
+        theta: Volume ratio :math:`\theta` (UFL, one plus the volume block).
     """
 
     saddle_point = True
@@ -124,6 +172,12 @@ class MixedHyperelasticProblem(EnergyProblem):
                 f"MixedHyperelasticProblem: need degree >= 2 and 1 <= pressure_degree < degree, "
                 f"got {degree}/{pressure_degree}"
             )
+        if isinstance(material, SplitEnergy):
+            regions = {None: material}
+        elif not material:
+            raise ParameterError("MixedHyperelasticProblem: material mapping is empty")
+        else:
+            regions = dict(material)
         self.domain = domain
         mesh = domain.mesh
         gdim = domain.gdim
@@ -134,27 +188,33 @@ class MixedHyperelasticProblem(EnergyProblem):
         cell = mesh.basix_cell()
         el_u = basix.ufl.element("Lagrange", cell, degree, shape=(gdim,))
         el_p = basix.ufl.element("Lagrange", cell, pressure_degree)
-        self.W = fem.functionspace(mesh, basix.ufl.mixed_element([el_u, el_p]))
+        self.W = fem.functionspace(mesh, basix.ufl.mixed_element([el_u, el_p, el_p]))
         self.u = fem.Function(self.W, name="state")
         self.V, self._u_dofs = self.W.sub(0).collapse()
         self.Q, self._p_dofs = self.W.sub(1).collapse()
+        Q_theta, self._theta_dofs = self.W.sub(2).collapse()
         self.displacement = fem.Function(self.V, name="displacement")
         self.pressure = fem.Function(self.Q, name="pressure")
-        u, p = ufl.split(self.u)
+        self.volume = fem.Function(Q_theta, name="volume_ratio")
+        u, p, dilatation = ufl.split(self.u)
         v = ufl.TestFunction(self.W)
-        v_u, _ = ufl.split(v)
+        v_u = ufl.split(v)[0]
         dw = ufl.TrialFunction(self.W)
         self.p = p
+        self.theta = 1.0 + dilatation
         self.F = ufl.Identity(gdim) + ufl.grad(u)
 
-        if isinstance(material, SplitEnergy):
-            self.energy_internal = material.mixed_energy(self.F, p) * domain.dx(metadata=md)
-        else:
-            if not material:
-                raise ParameterError("MixedHyperelasticProblem: material mapping is empty")
-            self.energy_internal = sum(
-                m.mixed_energy(self.F, p) * domain.dx(name, metadata=md) for name, m in material.items()
-            )
+        def dx(name):
+            return domain.dx(name, metadata=md)
+
+        self.energy_internal = sum(m.mixed_energy(self.F, p, self.theta) * dx(n) for n, m in regions.items())
+        J = ufl.det(self.F)
+        # What check_solution assembles (compiled on first use).
+        self._check_integrands = (
+            (J - self.theta) ** 2 * dx(None),
+            sum((m.isochoric(self.F) + m.volumetric_energy(J)) * dx(n) for n, m in regions.items()),
+        )
+        self._check_forms = None
         self.material = material
         self._dirichlet = [_CompiledDirichlet(bc, self.W.sub(0), domain) for bc in bcs]
 
@@ -162,10 +222,59 @@ class MixedHyperelasticProblem(EnergyProblem):
         self._derive_forms(u, v, v_u, dw, loads, conservative=False, updaters=updaters)
 
     def update_fields(self) -> tuple[fem.Function, fem.Function]:
-        """Copy the displacement and pressure blocks into :attr:`displacement`, :attr:`pressure`."""
+        """Copy the blocks into :attr:`displacement`, :attr:`pressure` and :attr:`volume` (:math:`\\theta`).
+
+        Returns:
+            ``(displacement, pressure)``.
+        """
         self.displacement.x.array[:] = self.u.x.array[self._u_dofs]
         self.pressure.x.array[:] = self.u.x.array[self._p_dofs]
+        self.volume.x.array[:] = 1.0 + self.u.x.array[self._theta_dofs]
         return self.displacement, self.pressure
+
+    def volume_jacobian(self) -> Expr:
+        r""":math:`\min(J, \theta)`, so the solver's inversion guard keeps both positive.
+
+        :math:`U(\theta)` may need :math:`\ln\theta`, and a Newton step can shrink
+        :math:`\theta` through zero while :math:`J` stays positive.
+        """
+        return ufl.min_value(ufl.det(self.F), self.theta)
+
+    def check_solution(self) -> tuple[dict[str, float], str | None]:
+        r"""Consistency of a converged state: is :math:`J` resolved by its projection :math:`\theta`?
+
+        Indicators:
+
+        * ``volume_consistency`` :math:`\eta = \big(\int (J - \theta)^2\,dX / \int dX\big)^{1/2}`:
+          the pointwise distance of :math:`J` from its :math:`P_1` projection,
+          large when :math:`J` oscillates inside the cells (the spurious states
+          of the old two-field form had 0.34–0.41). Above
+          :data:`VOLUME_CONSISTENCY_LIMIT` the state is rejected.
+        * ``energy_gap``: :math:`(E_u - \Pi_\text{int}) / \max(|E_u|, |\Pi_\text{int}|)` with
+          the displacement energy :math:`E_u = \int\psi_\text{iso} + U(J)` on the same
+          state. Recorded, not checked: it is about :math:`\frac{K}{2}\eta^2|\Omega|/E_u` and
+          does not discriminate (0.78 on the correct gripped bar, 0.87 on the
+          spurious cube).
+
+        Returns:
+            ``(indicators, message)``; ``message`` is ``None`` when the state is accepted.
+        """
+        if self._check_forms is None:
+            self._check_forms = tuple(fem.form(f) for f in (*self._check_integrands, self.energy_internal))
+            one = fem.form(fem.Constant(self.domain.mesh, 1.0) * self.domain.dx())
+            self._measure = self.domain.comm.allreduce(fem.assemble_scalar(one))
+        local = np.array([fem.assemble_scalar(f) for f in self._check_forms], dtype=float)
+        mismatch, displacement_energy, mixed = self.domain.comm.allreduce(local)
+        eta = math.sqrt(max(mismatch, 0.0) / self._measure)
+        scale = max(abs(displacement_energy), abs(mixed))
+        gap = (displacement_energy - mixed) / scale if scale > 0.0 else 0.0
+        indicators = {"volume_consistency": eta, "energy_gap": gap}
+        if not eta <= VOLUME_CONSISTENCY_LIMIT:
+            return indicators, (
+                f"J is not resolved by the volume field: ||J - theta|| / |Omega|^(1/2) = {eta:.3g} "
+                f"> {VOLUME_CONSISTENCY_LIMIT:g} (refine the mesh or reduce the load step)"
+            )
+        return indicators, None
 
 
 def solid_problem(
