@@ -23,6 +23,12 @@
 # deflection $PL^3/(3EI) \approx 1.25$ m, so the response is geometrically
 # nonlinear but moderate.
 #
+# The default is quadratic (P2) tetrahedra on the committed $h = 1$ mesh:
+# linear (P1) tetrahedra lock in bending and give a deflection 17 % short on
+# this mesh (`--degree 1`), P2 is within 0.3 % of the converged answer in about
+# a second. The summary says how far the result is from converged, from the
+# mesh-convergence table in `hyperfem/cases/cantilever.py`.
+#
 # Run with `python demos/bend.py` or `mpiexec -n 2 python demos/bend.py`.
 
 # %%
@@ -31,26 +37,26 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # threaded BLAS slows MUMPS ~10x
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
-from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load  # noqa: E402
-from hyperfem.cli import run  # noqa: E402
+from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, convergence_note, mesh_size_of  # noqa: E402
+from hyperfem.cli import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
 from hyperfem.driver import format_summary, run_quasistatic  # noqa: E402
+from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_MESH = ROOT / "meshes" / "beam_h1.msh"
 
 
-def parse(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description="Cantilever bend (seed 003, §5.7)")
+def parse(argv=None):
+    p = ArgumentParser(description="Cantilever bend (seed 003, §5.7)")
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="gmsh .msh file")
-    p.add_argument("--h", type=float, default=None, help="generate the beam with element size h instead")
-    p.add_argument("--degree", type=int, default=1, help="displacement degree")
-    p.add_argument("--increment", type=float, default=1.0, help="initial load increment")
+    p.add_argument("--h", type=positive_float, default=None, help="generate the beam with element size h instead")
+    p.add_argument("--degree", type=positive_int, default=2, help="displacement degree (P1 locks in bending)")
+    p.add_argument("--increment", type=fraction, default=1.0, help="initial load increment, in (0, 1]")
     p.add_argument("--output", type=Path, default=Path("output"), help="output folder")
     return p.parse_args(argv)
 
@@ -65,6 +71,7 @@ def parse(argv=None) -> argparse.Namespace:
 def main(argv=None) -> dict:
     args = parse(argv)
     comm = MPI.COMM_WORLD
+    ensure_output_dir(args.output, comm)  # fail on every rank before any work
     domain = hf.beam_mesh(h=args.h, comm=comm) if args.h else hf.read_mesh(args.mesh, comm)
     spec = CantileverSpec()
     params = spec.lame
@@ -84,6 +91,9 @@ def main(argv=None) -> dict:
         stepping=hf.LoadStepping(initial_increment=args.increment),
         extra={"case": "bend", "E": spec.E, "nu": spec.nu},
     )
+    h = args.h if args.h else mesh_size_of(args.mesh)
+    summary["convergence"] = convergence_note("bend", args.degree, h, summary["probe_displacement"][0])
+    write_json(summary["files"]["summary"], summary, comm)
     if comm.rank == 0:
         print(format_summary(summary), flush=True)
     return summary
@@ -93,8 +103,10 @@ def main(argv=None) -> dict:
 # ## Results
 # The summary lists the Newton iterations (about 4–5 with the energy line
 # search; a residual-norm line search needs about 20 on the same mesh), the
-# displacement of the test point $(4.5, 1.5, 1.5)$ and the output files:
-# open `output/bend.bp` in ParaView (VTX reader).
+# displacement of the test point $(4.5, 1.5, 1.5)$ (P2, $h = 1$:
+# $u_y = -1.2736$ m), its distance from the converged $u_y = -1.2775$ m
+# ($h = 0.5$, P2) and the output files: open `output/bend.bp` in ParaView
+# (VTX reader).
 
 # %%
 if __name__ == "__main__":

@@ -28,26 +28,26 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # threaded BLAS slows MUMPS ~10x
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
-from hyperfem.cases import TEST_POINT, CantileverSpec, twist_load  # noqa: E402
-from hyperfem.cli import run  # noqa: E402
+from hyperfem.cases import TEST_POINT, CantileverSpec, twist_load, convergence_note, mesh_size_of  # noqa: E402
+from hyperfem.cli import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
 from hyperfem.driver import format_summary, run_quasistatic  # noqa: E402
+from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_MESH = ROOT / "meshes" / "beam_h1.msh"
 
 
-def parse(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description="Cantilever twist with a follower traction (seed 003, §5.7)")
+def parse(argv=None):
+    p = ArgumentParser(description="Cantilever twist with a follower traction (seed 003, §5.7)")
     p.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="gmsh .msh file")
-    p.add_argument("--h", type=float, default=None, help="generate the beam with element size h instead")
-    p.add_argument("--degree", type=int, default=1, help="displacement degree")
-    p.add_argument("--increment", type=float, default=1.0, help="initial load increment")
+    p.add_argument("--h", type=positive_float, default=None, help="generate the beam with element size h instead")
+    p.add_argument("--degree", type=positive_int, default=2, help="displacement degree (P1 locks in bending)")
+    p.add_argument("--increment", type=fraction, default=1.0, help="initial load increment, in (0, 1]")
     p.add_argument("--output", type=Path, default=Path("output"), help="output folder")
     return p.parse_args(argv)
 
@@ -56,6 +56,7 @@ def parse(argv=None) -> argparse.Namespace:
 def main(argv=None) -> dict:
     args = parse(argv)
     comm = MPI.COMM_WORLD
+    ensure_output_dir(args.output, comm)  # fail on every rank before any work
     domain = hf.beam_mesh(h=args.h, comm=comm) if args.h else hf.read_mesh(args.mesh, comm)
     spec = CantileverSpec()
     params = spec.lame
@@ -76,6 +77,9 @@ def main(argv=None) -> dict:
         stepping=hf.LoadStepping(initial_increment=args.increment),
         extra={"case": "twist", "E": spec.E, "nu": spec.nu},
     )
+    h = args.h if args.h else mesh_size_of(args.mesh)
+    summary["convergence"] = convergence_note("twist", args.degree, h, summary["probe_displacement"][0])
+    write_json(summary["files"]["summary"], summary, comm)
     if comm.rank == 0:
         print(format_summary(summary), flush=True)
     return summary
@@ -85,7 +89,10 @@ def main(argv=None) -> dict:
 # ## Results
 # The end section rotates by about 0.15 rad (Saint-Venant torsion,
 # $\theta = TL/(G\,0.141\,a^4)$, gives 0.15 rad); the test point moves mostly in
-# the $y$–$z$ plane. Output: `output/twist.bp` and `output/twist.json`.
+# the $y$–$z$ plane. The default P2 elements on the $h = 1$ mesh are within
+# 0.5 % of the converged test-point displacement ($h = 0.5$, P2); P1 is about
+# 30 % short on this mesh. The summary prints that distance. Output:
+# `output/twist.bp` and `output/twist.json`.
 
 # %%
 if __name__ == "__main__":
