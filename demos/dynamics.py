@@ -77,6 +77,7 @@ def parse(argv=None):
     p.add_argument("--dt", type=positive_float, default=0.02, help="initial time step (s)")
     p.add_argument("--dt-max", type=positive_float, default=None, help="largest time step (s)")
     p.add_argument("--h", type=positive_float, default=1.0, help="element size of the beam mesh (m)")
+    p.add_argument("--mesh", type=Path, default=None, help="read this gmsh beam mesh instead of generating one")
     p.add_argument("--degree", type=positive_int, default=1, help="displacement degree")
     p.add_argument("--scheme", choices=sorted(SCHEMES), default="newmark")
     p.add_argument("--rho-inf", type=unit_interval, default=0.8, help="generalized-alpha spectral radius in [0, 1]")
@@ -117,7 +118,7 @@ def main(argv=None) -> dict:
     out = ensure_output_dir(args.output / args.case, comm)  # fail on every rank before any work
     wall0 = time.perf_counter()
     spec = CantileverDynamics()
-    domain = hf.beam_mesh(h=args.h, comm=comm)
+    domain = hf.read_mesh(args.mesh, comm) if args.mesh else hf.beam_mesh(h=args.h, comm=comm)
     base, must_hit = cantilever_problem(args.case, domain, spec, degree=args.degree)
     scheme = SCHEMES[args.scheme](args)
     problem = dyn.IncrementalProblem(

@@ -67,7 +67,7 @@ from dolfinx import fem, io  # noqa: E402
 import hyperfem as hf  # noqa: E402
 from hyperfem.activation import Activation  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
-from hyperfem.io.results import write_json  # noqa: E402
+from hyperfem.io.results import ensure_output_dir, write_json  # noqa: E402
 from hyperfem.materials.muscle import MuscleParameters, fibre_stretch, muscle_isochoric  # noqa: E402
 from hyperfem.mesh.fusiform import FusiformGeometry, fusiform_mesh  # noqa: E402
 from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem  # noqa: E402
@@ -258,12 +258,12 @@ def main(argv=None) -> dict:
     args = parse(argv)
     comm = MPI.COMM_WORLD
     start = time.perf_counter()
+    if args.output is not None:
+        ensure_output_dir(args.output, comm)  # collective: every rank fails together, before any work
     geometry = FusiformGeometry()
     domain = hf.read_mesh(args.mesh, comm) if args.mesh else fusiform_mesh(h=args.h, geometry=geometry, comm=comm)
     quad = 4 if args.formulation == "mixed" else 1
     a0 = laplace_fibres(domain, "origin", "insertion", representation=args.fibres, quadrature_degree=quad)
-    if args.output is not None and comm.rank == 0:
-        args.output.mkdir(parents=True, exist_ok=True)
     a0_out = a0 if args.fibres != "quadrature" else laplace_fibres(domain, "origin", "insertion")
     iso = run_experiment("isometric", domain, a0, a0_out, args, comm)
     free = run_experiment("free", domain, a0, a0_out, args, comm)

@@ -71,8 +71,10 @@ def test_energy_line_search_beats_residual_line_search():
     residual = hf.NewtonSolver(problem, energy_line_search=False)
     problem.set_load_factor(1.0)
     rec = residual.solve(raise_on_failure=True)
-    assert steps_energy[0].solve.iterations <= 5
-    assert rec.iterations >= 3 * steps_energy[0].solve.iterations  # measured: 4 vs 18
+    # measured: 4 vs 18; bounds with slack (iteration counts are not round-off-level here, but
+    # the last iterate of each solve decides by a factor ~1e3, not 1e6)
+    assert steps_energy[0].solve.iterations <= 6
+    assert rec.iterations >= 2 * steps_energy[0].solve.iterations
     d_residual = PointProbe(domain.mesh, [TEST_POINT])(problem.u)[0]
     np.testing.assert_allclose(d_residual, d_energy, rtol=1e-7, atol=1e-9)
 
@@ -125,7 +127,9 @@ def test_roundoff_stop_is_insensitive_to_noise():
         problem, solver = _bend_solver(options=TIGHT)
         rng = np.random.default_rng(seed)
         problem.u.x.array[:] = 1e-12 * rng.standard_normal(problem.u.x.array.size)
-        rec = solver.solve()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", hf.RoundoffWarning)
+            rec = solver.solve()
         outcomes.add((rec.converged, rec.reason_name in ("CONVERGED_ROUNDOFF", "CONVERGED_FNORM_RELATIVE")))
         assert rec.iterations <= 10
         tips.append(PointProbe(problem.domain.mesh, [TEST_POINT])(problem.u)[0])

@@ -12,9 +12,12 @@ from mpi4py import MPI
 
 from hyperfem.problem.mixed import VOLUME_CONSISTENCY_LIMIT
 
-DEMO = Path(__file__).resolve().parent.parent / "demos" / "muscle.py"
+ROOT = Path(__file__).resolve().parent.parent
+DEMO = ROOT / "demos" / "muscle.py"
+# Committed (gmsh 4.15, h = 8 mm, default geometry): a gmsh of another version meshes differently.
+MESH = ROOT / "meshes" / "fusiform_h8mm.msh"
 
-# Serial run of `demos/muscle.py --h 0.008 --steps 3` (268 cells, three-field P2/P1/P1, 2180 dofs); 2 ranks
+# Serial run of `demos/muscle.py --mesh meshes/fusiform_h8mm.msh --steps 3` (268 cells, three-field P2/P1/P1, 2180 dofs); 2 ranks
 # must agree. The old two-field ln J form gave 1.4591467, 2.6522203, 3.6820586 N, bulge 1.31992 mm and
 # shortening 13.04143 mm (0.2-0.6 % apart; 0.05-0.4 % at the default h = 0.005: discretisation error).
 EXPECTED_REACTION = [0.0, 1.462016213502715, 2.6628865684311207, 3.7043146383794987]
@@ -28,7 +31,7 @@ def summary(tmp_path_factory):
     spec = importlib.util.spec_from_file_location("demo_muscle", DEMO)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    result = module.main(["--h", "0.008", "--steps", "3", "--output", str(folder)])
+    result = module.main(["--mesh", str(MESH), "--steps", "3", "--output", str(folder)])
     result["folder"] = folder
     return result
 
@@ -71,8 +74,12 @@ def test_volume_consistency(summary):
 
 
 def test_free_contraction_equilibrium(summary):
-    """The internal force at the (free) insertion face equals the applied dead traction at every step."""
+    """The internal force at the (free) insertion face equals the applied dead traction at every step.
+
+    Up to the Newton tolerance (rtol 1e-9 of the first residual): 1.6e-9 relative was measured,
+    so 1e-6 is machine-independent and still catches a wrong reaction or load.
+    """
     free = summary["free"]
     applied = 2.0e3 * free["insertion_area"]
     for row in free["steps"]:
-        assert row["reaction_insertion"][2] == pytest.approx(applied, rel=1e-8)
+        assert row["reaction_insertion"][2] == pytest.approx(applied, rel=1e-6)
