@@ -126,7 +126,7 @@ class Post:
         self.problem = problem
         self.domain = domain
         mixed = getattr(problem, "saddle_point", False)
-        self.u = problem.displacement if mixed else problem.u
+        self.u = problem.displacement_field if mixed else problem.u
         self.mixed = mixed
         mesh = domain.mesh
         x = self.u.function_space.tabulate_dof_coordinates()

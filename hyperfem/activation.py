@@ -9,7 +9,8 @@ where :math:`g` is a constant or a schedule :math:`g(t)` held in a
 :class:`dolfinx.fem.Constant` (updated by :meth:`Activation.update` with the
 load factor or time :math:`t`), and :math:`a` is 1 or a spatial field. Values
 outside :math:`[0, 1]` raise :class:`~hyperfem.errors.ParameterError`.
-:class:`ActivatedProblem` couples activations to a problem's load factor.
+Pass activations to a problem as ``updaters=[...]``: its
+:meth:`~hyperfem.problem.protocol.SolidProblem.set_time` calls ``update(t)``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from dolfinx import fem
 
 from hyperfem.errors import ParameterError
 
-__all__ = ["ActivatedProblem", "Activation"]
+__all__ = ["Activation"]
 
 
 def _check_range(value: float, what: str) -> float:
@@ -107,31 +108,3 @@ class Activation:
         """Evaluate the schedule at load factor/time ``t`` (no-op for a constant)."""
         if self._schedule is not None:
             self.set(self._schedule(t))
-
-
-class ActivatedProblem:
-    """A problem whose activations follow its load factor.
-
-    Wraps any problem of the solver protocol (e.g.
-    :class:`~hyperfem.problem.HyperelasticProblem`); every attribute is
-    forwarded, and :meth:`set_load_factor` also calls ``update(s)`` on each
-    activation.
-
-    Args:
-        problem: The wrapped problem.
-        activations: Objects with an ``update(s)`` method.
-    """
-
-    def __init__(self, problem, activations: Iterable[Activation]):
-        self._problem = problem
-        self.activations = list(activations)
-        self.set_load_factor(problem.load_factor)
-
-    def __getattr__(self, name: str):
-        return getattr(self._problem, name)
-
-    def set_load_factor(self, s: float) -> None:
-        """Set loads, prescribed displacements and activations for factor/time ``s``."""
-        self._problem.set_load_factor(s)
-        for a in self.activations:
-            a.update(s)

@@ -60,11 +60,18 @@ class ConvergenceError(HyperfemError, RuntimeError):
     """A nonlinear solve failed after all cutbacks.
 
     Attributes:
-        load_factor: The last load factor (or time) that converged.
+        time: The last time (load factor of a quasi-static ramp) that converged.
         history: Records of the steps that did converge.
     """
 
-    def __init__(self, message: str, load_factor: float = 0.0, history: list | None = None):
+    def __init__(
+        self, message: str, time: float = 0.0, history: list | None = None, *, load_factor: float | None = None
+    ):
         super().__init__(message)
-        self.load_factor = load_factor
+        self.time = float(time if load_factor is None else load_factor)
         self.history = [] if history is None else history
+
+    @property
+    def load_factor(self) -> float:
+        """Alias of :attr:`time`."""
+        return self.time

@@ -244,7 +244,7 @@ def _two_field_log_tangent(problem, K: float):
     el_u = basix.ufl.element("Lagrange", cell, 2, shape=(3,))
     W = fem.functionspace(mesh, basix.ufl.mixed_element([el_u, basix.ufl.element("Lagrange", cell, 1)]))
     w = fem.Function(W)
-    for i, field in enumerate((problem.displacement, problem.volume)):
+    for i, field in enumerate((problem.displacement_field, problem.volume)):
         V, dofs = W.sub(i).collapse()
         copy = fem.Function(V)
         copy.interpolate(field)

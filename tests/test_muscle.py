@@ -19,7 +19,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 import hyperfem as hf
-from hyperfem.activation import ActivatedProblem, Activation
+from hyperfem.activation import Activation
 from hyperfem.errors import ParameterError
 from hyperfem.materials.mooney_rivlin import MooneyRivlinParameters, mooney_rivlin, mooney_rivlin_stress
 from hyperfem.materials.muscle import (
@@ -384,7 +384,7 @@ def test_cube_fibre_stretch_nominal_stress():
         hf.PrescribedDisplacement("z0", [0.0], components=[2]),
         hf.PrescribedDisplacement("x1", [0.1], components=[0]),
     ]  # u_x = 0.1 s
-    problem = ActivatedProblem(hf.HyperelasticProblem(domain, lambda F: muscle(F, a0, act.expr, p), bcs=bcs), [act])
+    problem = hf.HyperelasticProblem(domain, lambda F: muscle(F, a0, act.expr, p), bcs=bcs, updaters=[act])
     solver = hf.NewtonSolver(problem)
     reaction = ReactionForce(problem, "x1")
     for s_load, alpha in ((2.0, 0.5), (-2.0, 1.0), (3.0, 0.0)):  # lam = 1.2, 0.8, 1.3

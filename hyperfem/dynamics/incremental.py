@@ -168,6 +168,14 @@ class IncrementalProblem:
         """The base problem's non-finite load terms."""
         return self.base.nonfinite_terms()
 
+    def displacement(self, state=None):
+        """The base problem's displacement of ``state``."""
+        return self.base.displacement(state)
+
+    def displacement_space(self):
+        """The base problem's displacement (sub)space."""
+        return self.base.displacement_space()
+
     def volume_jacobian(self):
         """:math:`J = \\det F(u_{n+1})`."""
         return self.base.volume_jacobian()

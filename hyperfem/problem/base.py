@@ -1,4 +1,4 @@
-r"""What every energy-based problem shares: loads, residual, tangent, load factor.
+r"""What every energy-based problem shares: loads, residual, tangent, time.
 
 Given the stored energy form, :class:`EnergyProblem` adds the loads
 (:func:`~hyperfem.problem.loads.load_terms`) and derives
@@ -7,8 +7,10 @@ Given the stored energy form, :class:`EnergyProblem` adds the loads
     R = \frac{\partial (\Pi_\text{int} - W_\text{dead})}{\partial w}[v] + R_\text{follower},
     \qquad K = \frac{\partial R}{\partial w}[\delta w]
 
-with ``ufl.derivative``; :meth:`set_load_factor` moves loads, prescribed
-displacements and any *updaters* (e.g. muscle activation) to factor/time ``s``.
+with ``ufl.derivative``; :meth:`set_time` moves loads, prescribed
+displacements and any *updaters* (e.g. muscle activation) to time ``t`` (the
+load factor of a quasi-static ramp, or physical time). :class:`EnergyProblem`
+meets :class:`~hyperfem.problem.protocol.SolidProblem`.
 """
 
 from __future__ import annotations
@@ -29,11 +31,10 @@ __all__ = ["EnergyProblem"]
 class EnergyProblem:
     """Base of :class:`~hyperfem.problem.HyperelasticProblem` and the mixed problem.
 
-    Subclasses set ``domain``, ``u``, ``F``, ``quadrature_degree``,
+    Subclasses set ``domain``, ``u``, ``F``, ``degree``, ``quadrature_degree``,
     ``energy_internal`` and ``_dirichlet``, then call :meth:`_derive_forms`.
     """
 
-    _updaters: list = []
     rigid_motion_resisted = False
     """Static problems need Dirichlet conditions that fix every rigid-body motion."""
 
@@ -64,22 +65,51 @@ class EnergyProblem:
         if self.follower_residual is not None:
             self.residual = self.residual + self.follower_residual
         self.jacobian = ufl.derivative(self.residual, self.u, trial)
-        self.load_factor = 0.0
-        self.set_load_factor(0.0)
+        self._time = 0.0
+        self.set_time(0.0)
 
     @property
     def bcs(self) -> list[fem.DirichletBC]:
-        """The DOLFINx Dirichlet conditions (values follow :meth:`set_load_factor`)."""
+        """The DOLFINx Dirichlet conditions (values follow :meth:`set_time`)."""
         return [d for c in self._dirichlet for d in c.dirichlet]
 
-    def set_load_factor(self, s: float) -> None:
-        """Set loads, prescribed displacements and updaters for load factor/time ``s``."""
-        self.load_factor = float(s)
-        self._loads.set(s)
+    @property
+    def time(self) -> float:
+        """The time (load factor of a quasi-static ramp) the loads are at."""
+        return self._time
+
+    @property
+    def load_factor(self) -> float:
+        """Alias of :attr:`time` (the pseudo-time of a quasi-static ramp)."""
+        return self._time
+
+    def set_time(self, t_loads: float, t_bcs: float | None = None) -> None:
+        """Move loads and updaters to ``t_loads`` and prescribed displacements to ``t_bcs``.
+
+        Args:
+            t_loads: Time of the loads and updaters.
+            t_bcs: Time of the Dirichlet values; default ``t_loads`` (schemes
+                such as generalized-α evaluate them apart).
+        """
+        t_bcs = t_loads if t_bcs is None else t_bcs
+        self._time = float(t_loads)
+        self._loads.set(t_loads)
         for d in self._dirichlet:
-            d.update(s)
+            d.update(t_bcs)
         for updater in self._updaters:
-            updater.update(s)
+            updater.update(t_loads)
+
+    def set_load_factor(self, s: float) -> None:
+        """Alias of :meth:`set_time` with loads and boundary values at ``s``."""
+        self.set_time(s)
+
+    def displacement(self, state: fem.Function | None = None) -> ufl.core.expr.Expr:
+        """The displacement of ``state`` (default :attr:`u`): the function itself here."""
+        return self.u if state is None else state
+
+    def displacement_space(self) -> fem.FunctionSpace:
+        """The space of :attr:`u` (all of it is displacement here)."""
+        return self.u.function_space
 
     def check_solution(self) -> tuple[dict[str, float], str | None]:
         """Consistency indicators of a converged state, and why it is not a solution (if it is not).

@@ -16,7 +16,7 @@ forms never need recompiling.
 from __future__ import annotations
 
 import numbers
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import ufl
 from dolfinx import fem
@@ -27,7 +27,8 @@ from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.loads import Load
-from hyperfem.problem.validation import scalar_energy
+from hyperfem.problem.protocol import Updater
+from hyperfem.problem.validation import check_region_coverage, scalar_energy
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
 
@@ -62,6 +63,8 @@ class HyperelasticProblem(EnergyProblem):
         degree: Lagrange degree of the displacement.
         quadrature_degree: Quadrature degree; default from
             :func:`default_quadrature_degree`.
+        updaters: Objects with ``update(t)`` that :meth:`set_time` calls
+            (e.g. :class:`~hyperfem.activation.Activation`).
 
     Attributes:
         u: The displacement :class:`dolfinx.fem.Function`.
@@ -82,6 +85,7 @@ class HyperelasticProblem(EnergyProblem):
         loads: Sequence[Load] = (),
         degree: int = 1,
         quadrature_degree: int | None = None,
+        updaters: Iterable[Updater] = (),
     ):
         where = "HyperelasticProblem"
         if not isinstance(domain, Domain):
@@ -125,6 +129,7 @@ class HyperelasticProblem(EnergyProblem):
         else:
             if not material:
                 raise ParameterError(f"{where}: material mapping is empty")
+            check_region_coverage(domain, list(material), where)
             self.energy_internal = sum(
                 scalar_energy(psi, self.F, f"{where}, region {name!r}") * domain.dx(name, metadata=md)
                 for name, psi in material.items()
@@ -132,4 +137,4 @@ class HyperelasticProblem(EnergyProblem):
         self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
 
         # Loads: one Constant magnitude each, scaled by its profile.
-        self._derive_forms(self.u, v, v, du, loads)
+        self._derive_forms(self.u, v, v, du, loads, updaters=updaters)

@@ -31,7 +31,7 @@ non-homogeneous state with :math:`\int J\,dX = 1.07` (:math:`K/\mu = 10^3`).
 :class:`~hyperfem.solver.NewtonSolver`: ``u`` is the *mixed* function
 :math:`w = (u, p, \theta - 1)` (the volume block stores the dilatation, so
 :math:`w = 0` is the reference state), the displacement is
-:attr:`~MixedHyperelasticProblem.displacement` (call
+:attr:`~MixedHyperelasticProblem.displacement_field` (call
 :meth:`~MixedHyperelasticProblem.update_fields`). Residual and tangent are
 ``ufl.derivative`` of :math:`\Pi`. Because :math:`\Pi` is a saddle point in
 :math:`p`, it cannot be a line-search merit function, so the problem reports
@@ -60,7 +60,7 @@ from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDir
 from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.loads import Load
-from hyperfem.problem.validation import check_energy_callable
+from hyperfem.problem.validation import check_energy_callable, check_region_coverage
 
 __all__ = [
     "VOLUME_CONSISTENCY_LIMIT",
@@ -145,7 +145,7 @@ class MixedHyperelasticProblem(EnergyProblem):
 
     Attributes:
         u: The mixed unknown :math:`w = (u, p, \theta - 1)` (what the solver updates).
-        displacement, pressure, volume: Collapsed copies of :math:`u, p, \theta`,
+        displacement_field, pressure, volume: Collapsed copies of :math:`u, p, \theta`,
             refreshed by :meth:`update_fields`.
         F: Deformation gradient (UFL, from the displacement block).
         p: Pressure (UFL, from the pressure block).
@@ -178,6 +178,7 @@ class MixedHyperelasticProblem(EnergyProblem):
             raise ParameterError("MixedHyperelasticProblem: material mapping is empty")
         else:
             regions = dict(material)
+            check_region_coverage(domain, list(regions), "MixedHyperelasticProblem")
         self.domain = domain
         mesh = domain.mesh
         gdim = domain.gdim
@@ -193,7 +194,7 @@ class MixedHyperelasticProblem(EnergyProblem):
         self.V, self._u_dofs = self.W.sub(0).collapse()
         self.Q, self._p_dofs = self.W.sub(1).collapse()
         Q_theta, self._theta_dofs = self.W.sub(2).collapse()
-        self.displacement = fem.Function(self.V, name="displacement")
+        self.displacement_field = fem.Function(self.V, name="displacement")
         self.pressure = fem.Function(self.Q, name="pressure")
         self.volume = fem.Function(Q_theta, name="volume_ratio")
         u, p, dilatation = ufl.split(self.u)
@@ -222,15 +223,23 @@ class MixedHyperelasticProblem(EnergyProblem):
         self._derive_forms(u, v, v_u, dw, loads, conservative=False, updaters=updaters)
 
     def update_fields(self) -> tuple[fem.Function, fem.Function]:
-        """Copy the blocks into :attr:`displacement`, :attr:`pressure` and :attr:`volume` (:math:`\\theta`).
+        """Copy the blocks into :attr:`displacement_field`, :attr:`pressure` and :attr:`volume` (:math:`\\theta`).
 
         Returns:
             ``(displacement, pressure)``.
         """
-        self.displacement.x.array[:] = self.u.x.array[self._u_dofs]
+        self.displacement_field.x.array[:] = self.u.x.array[self._u_dofs]
         self.pressure.x.array[:] = self.u.x.array[self._p_dofs]
         self.volume.x.array[:] = 1.0 + self.u.x.array[self._theta_dofs]
-        return self.displacement, self.pressure
+        return self.displacement_field, self.pressure
+
+    def displacement(self, state: fem.Function | None = None) -> Expr:
+        """The displacement block of ``state`` (default :attr:`u`), a function on :attr:`W`."""
+        return ufl.split(self.u if state is None else state)[0]
+
+    def displacement_space(self) -> fem.FunctionSpace:
+        """The displacement subspace ``W.sub(0)``."""
+        return self.W.sub(0)
 
     def volume_jacobian(self) -> Expr:
         r""":math:`\min(J, \theta)`, so the solver's inversion guard keeps both positive.
@@ -292,21 +301,13 @@ def solid_problem(
         material: Split energy (or mapping region → split energy).
         formulation: ``"mixed"`` (Taylor–Hood u–p) or ``"displacement"``.
         degree: Displacement degree (default 2 for mixed, 1 for displacement).
-        **kwargs: Passed on (``bcs``, ``loads``, ``quadrature_degree``, ``updaters``...);
-            with ``updaters`` the displacement problem is wrapped in an
-            :class:`~hyperfem.activation.ActivatedProblem`.
+        **kwargs: Passed on (``bcs``, ``loads``, ``quadrature_degree``, ``updaters``...).
     """
     if formulation == "mixed":
         return MixedHyperelasticProblem(domain, material, degree=degree or 2, **kwargs)
     if formulation == "displacement":
-        updaters = list(kwargs.pop("updaters", ()))
         psi = material.energy if isinstance(material, SplitEnergy) else {k: m.energy for k, m in material.items()}
-        problem = HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
-        if updaters:
-            from hyperfem.activation import ActivatedProblem
-
-            return ActivatedProblem(problem, updaters)
-        return problem
+        return HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
     raise ParameterError(f"unknown formulation {formulation!r} (use 'mixed' or 'displacement')")
 
 

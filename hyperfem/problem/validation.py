@@ -18,6 +18,7 @@ from hyperfem.errors import HyperfemError, ParameterError
 
 __all__ = [
     "check_callable",
+    "check_region_coverage",
     "check_energy_callable",
     "check_finite_scalar",
     "check_finite_vector",
@@ -140,3 +141,28 @@ def check_energy_callable(psi: Callable, where: str) -> None:
                 + (f"a UFL expression of shape {shape}" if shape is not None else type(value).__name__)
             )
         return
+
+
+def check_region_coverage(domain, regions, where: str) -> None:
+    """Every cell must belong to one of the material ``regions`` (names of cell groups).
+
+    Cells outside every region carry no energy: their dofs make the tangent
+    singular, which SNES reports far from the cause. Collective.
+    """
+    import numpy as np
+    from mpi4py import MPI
+
+    tdim = domain.tdim
+    n_local = domain.mesh.topology.index_map(tdim).size_local
+    covered = np.zeros(n_local, dtype=bool)
+    for name in regions:
+        cells = domain.cells(name)
+        covered[cells[cells < n_local]] = True
+    missing = domain.comm.allreduce(int(n_local - covered.sum()), op=MPI.SUM)
+    if missing:
+        total = domain.comm.allreduce(n_local, op=MPI.SUM)
+        available = ", ".join(sorted(domain.cell_groups)) or "none"
+        raise ParameterError(
+            f"{where}: {missing} of {total} cells lie outside every material region "
+            f"(given: {', '.join(regions)}; cell groups of {domain.source}: {available})"
+        )

@@ -48,16 +48,14 @@ def unconstrained_rigid_modes(problem, tol: float = 1e-10) -> list[str]:
     """Names of the rigid-body motions left free by ``problem.bcs`` (empty when all are constrained).
 
     Args:
-        problem: Provides ``u`` (displacement, or mixed state whose first
-            subspace is the displacement), ``bcs``, ``domain``.
+        problem: A :class:`~hyperfem.problem.protocol.SolidProblem`.
         tol: Eigenvalue threshold of the normalised Gram matrix.
     """
     domain = problem.domain
     comm = domain.comm
     gdim = domain.gdim
     W = problem.u.function_space
-    sub = W.num_sub_spaces > 0 and len(W.value_shape) == 1 and W.value_shape[0] != gdim
-    # The displacement of a mixed state is its first block.
+    sub = problem.displacement_space() is not W  # the displacement block of a mixed state
     bs = W.dofmap.index_map_bs
     n_owned = W.dofmap.index_map.size_local * bs
     mask = np.zeros(len(problem.u.x.array), dtype=bool)

@@ -36,18 +36,14 @@ What this adds to the DOLFINx class:
   rigid-body motion free, exceptions raised inside SNES callbacks;
 * a :class:`SolveRecord` per solve (reason, iterations, residual history).
 
-The solver works with any *problem* object that provides (as
-:class:`~hyperfem.problem.HyperelasticProblem` does): ``domain``, ``u`` (the
-unknown :class:`~dolfinx.fem.Function`, possibly on a mixed space),
-``residual`` and ``jacobian`` (UFL forms), ``bcs``, ``energy_internal`` and
-``energy_external`` (UFL scalar forms, :math:`\Pi` = internal − external),
-``conservative`` (bool), ``load_factor``, ``volume_jacobian()`` (UFL
-expression of :math:`J`) and ``quadrature_points()``.
+The solver works with any problem that meets
+:class:`~hyperfem.problem.protocol.SolidProblem` (the displacement and the
+three-field problem, and a time step of either). Its tangent solves use one
+:class:`~hyperfem.solver.linear.LinearSolver` configuration.
 """
 
 from __future__ import annotations
 
-import itertools
 import time
 import warnings
 import weakref
@@ -62,7 +58,9 @@ from dolfinx import fem
 from dolfinx.la.petsc import _ghost_update
 
 from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.problem.protocol import SolidProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
+from hyperfem.solver.linear import DIRECT, LinearSolver, unique_prefix
 
 __all__ = ["DEFAULT_PETSC_OPTIONS", "ROUNDOFF_FACTOR", "NewtonSolver", "RoundoffWarning", "SolveRecord"]
 
@@ -90,13 +88,10 @@ DEFAULT_PETSC_OPTIONS: dict[str, object] = {
     "snes_atol": 1e-10,
     "snes_stol": 0.0,
     "snes_max_it": 50,
-    "ksp_type": "preonly",
-    "pc_type": "lu",
-    "pc_factor_mat_solver_type": "mumps",
+    **DIRECT,
 }
 """Defaults of :class:`NewtonSolver`; user options are merged over these."""
 
-_counter = itertools.count()
 
 
 @dataclass
@@ -172,6 +167,10 @@ class NewtonSolver:
         check_rigid_motion: Refuse Dirichlet conditions that leave a
             rigid-body motion free (the tangent is singular). Problems with
             ``rigid_motion_resisted`` (inertia) are not checked.
+        linear_solver: The linear-solver configuration of the tangent solves
+            (default: MUMPS LU); its options sit between the SNES defaults
+            and ``petsc_options``, its near-nullspace hook is applied to the
+            tangent matrix.
 
     Raises:
         ParameterError: Invalid PETSc options, a bad prefix, or Dirichlet
@@ -180,7 +179,7 @@ class NewtonSolver:
 
     def __init__(
         self,
-        problem,
+        problem: SolidProblem,
         petsc_options: dict | None = None,
         *,
         prefix: str | None = None,
@@ -190,6 +189,7 @@ class NewtonSolver:
         predictor: bool = True,
         roundoff_factor: float = ROUNDOFF_FACTOR,
         check_rigid_motion: bool = True,
+        linear_solver: LinearSolver | None = None,
         form_compiler_options: dict | None = None,
         jit_options: dict | None = None,
     ):
@@ -197,11 +197,11 @@ class NewtonSolver:
         comm = problem.domain.comm
         self.comm = comm
         if prefix is None:
-            prefix = f"hyperfem_{next(_counter)}_"
+            prefix = unique_prefix("newton")
         if not prefix.endswith("_"):
             raise ParameterError(f"NewtonSolver: options prefix must end with '_', got {prefix!r}")
         self.prefix = prefix
-        if check_rigid_motion and not getattr(problem, "rigid_motion_resisted", False):
+        if check_rigid_motion and not problem.rigid_motion_resisted:
             free = unconstrained_rigid_modes(problem)
             if free:
                 raise ParameterError(
@@ -214,7 +214,8 @@ class NewtonSolver:
             # h = 1): residual-norm 'bt' 13 iterations, 'cp' 6, 'basic' 5
             # (unsafeguarded); 'cp' is the safeguarded choice.
             defaults["snes_linesearch_type"] = "cp"
-        self.options = {**defaults, **(petsc_options or {})}
+        self.linear_solver = LinearSolver() if linear_solver is None else linear_solver
+        self.options = {**defaults, **self.linear_solver.options, **(petsc_options or {})}
         try:
             self._nlp = fpetsc.NonlinearProblem(
                 problem.residual,
@@ -231,6 +232,8 @@ class NewtonSolver:
             raise ParameterError(f"NewtonSolver: {self._describe_option_error(exc, petsc_options or {})}") from None
         snes = self._nlp.solver
         self.snes = snes
+        if self.linear_solver.near_nullspace is not None:
+            self.linear_solver.near_nullspace(self._nlp.A)
         self._norms: list[float] = []
         self._callback_error: BaseException | None = None
         # Callbacks hold the solver weakly: a strong reference from the SNES
@@ -575,15 +578,14 @@ class NewtonSolver:
             detail = f": {message}" if message else ""
             raise ConvergenceError(
                 f"Newton solve did not converge: {record.reason_name} after {record.iterations} iterations "
-                f"(load factor {self.problem.load_factor:g}){detail}",
-                load_factor=self.problem.load_factor,
+                f"(t = {self.problem.time:g}){detail}",
+                self.problem.time,
             )
         return record
 
     def _nan_message(self) -> str:
-        where = f"load factor {self.problem.load_factor:g}"
-        find = getattr(self.problem, "nonfinite_terms", None)
-        names = find() if find is not None else []
+        where = f"t = {self.problem.time:g}"
+        names = self.problem.nonfinite_terms()
         if names:
             return f"NewtonSolver: residual is NaN/inf at the start of the solve ({where}); non-finite term(s): {', '.join(names)}"
         return (
