@@ -75,3 +75,12 @@ class ConvergenceError(HyperfemError, RuntimeError):
     def load_factor(self) -> float:
         """Alias of :attr:`time`."""
         return self.time
+
+
+class SolverError(HyperfemError, RuntimeError):
+    """PETSc failed inside a solve for a reason that is not a hard step (a bug or a broken install).
+
+    A step that is merely hard (line search, inversion, a diverged linear
+    solve) is a failed :class:`~hyperfem.solver.SolveRecord`, cut back by the
+    stepper; this is raised instead, with PETSc's error code.
+    """

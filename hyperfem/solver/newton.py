@@ -57,7 +57,7 @@ import dolfinx.fem.petsc as fpetsc
 from dolfinx import fem
 from dolfinx.la.petsc import _ghost_update
 
-from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.errors import ConvergenceError, ParameterError, SolverError
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
 from hyperfem.solver.linear import DIRECT, LinearSolver, unique_prefix
@@ -73,6 +73,9 @@ cantilever cases (P1/P2, dead and follower loads), so a factor 100 leaves a
 margin of 30 for other BLAS/MUMPS builds and ends those solves at the first
 stagnating iterate, while a residual this small is below :math:`10^{-10}` of
 the loads there."""
+
+MAX_INVERSION_HALVINGS = 40
+"""The pre-check halves a Newton step at most this often to keep :math:`J > J_{\\min}`."""
 
 CONVERGED_ROUNDOFF = int(PETSc.SNES.ConvergedReason.CONVERGED_ITS)
 """SNES reason returned when the floor ends a solve (the record names it ``CONVERGED_ROUNDOFF``)."""
@@ -113,7 +116,8 @@ class SolveRecord:
         inversion_cutbacks: Line-search steps halved to keep :math:`J > J_{\min}`.
         roundoff_accepts: Steps the energy could not resolve, judged by the residual.
         indicators: The problem's consistency indicators (:meth:`check_solution`).
-        message: Why a solve that SNES reported converged was rejected, or ``""``.
+        message: Why the solve failed or was rejected (empty when it converged).
+        ksp_reason: Converged reason of the last linear solve (negative: failed).
     """
 
     converged: bool
@@ -130,6 +134,7 @@ class SolveRecord:
     roundoff_accepts: int = 0
     indicators: dict = field(default_factory=dict)
     message: str = ""
+    ksp_reason: int = 0
 
     def as_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -424,13 +429,18 @@ class NewtonSolver:
     def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         # SNES line searches try x - lambda*y with lambda <= 1: shorten y until
         # the full step keeps every quadrature point above min_jacobian.
-        for _ in range(40):
+        for _ in range(MAX_INVERSION_HALVINGS):
             self._work.waxpy(-1.0, y, x)
             self._set_state(self._work)
             if self.min_J() > self.min_jacobian:
                 break
             y.scale(0.5)
             self.inversion_cutbacks += 1
+        else:
+            # Even a step 2^-40 as long inverts: the search direction is unusable. Tell SNES
+            # (DIVERGED_FUNCTION_DOMAIN, a failed solve the stepper cuts back) and say why.
+            self._inversion_giveup = True
+            self.snes.setFunctionDomainError()
         self._set_state(x)
 
     # -- predictor -------------------------------------------------------
@@ -509,6 +519,7 @@ class NewtonSolver:
         self._floor = float("nan")
         self._roundoff_stop = False
         self._callback_error = None
+        self._inversion_giveup = False
         cutbacks0, accepts0 = self.inversion_cutbacks, self.roundoff_accepts
         snes = self.snes
         start = time.perf_counter()
@@ -531,12 +542,19 @@ class NewtonSolver:
             except PETSc.Error as exc:
                 if self._callback_error is not None:
                     raise self._callback_error from None
-                reason = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
-                message = f"PETSc error {getattr(exc, 'ierr', '?')} during the solve"
+                raise SolverError(
+                    f"NewtonSolver: PETSc error {getattr(exc, 'ierr', '?')} in the solve at t = {self.problem.time:g} "
+                    f"(options prefix {self.prefix}); not a hard step but a failure of PETSc itself"
+                ) from exc
         else:
             message = f"start state has J <= {self.min_jacobian:g}"
         u.x.scatter_forward()
         iterations = int(snes.getIterationNumber())
+        ksp_reason = int(snes.getKSP().getConvergedReason())
+        if self._inversion_giveup and not message:
+            message = f"every step along the Newton direction inverts elements (halved {MAX_INVERSION_HALVINGS} times)"
+        elif reason == int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE) and not message:
+            message = f"linear solve failed (KSP reason {ksp_reason})"
         if self._roundoff_stop and not self._warned_floor and self._ttol < self._floor:
             self._warned_floor = True  # once per solver
             if self.comm.rank == 0:
@@ -573,6 +591,7 @@ class NewtonSolver:
             roundoff_accepts=self.roundoff_accepts - accepts0,
             indicators=indicators,
             message=message,
+            ksp_reason=ksp_reason,
         )
         if raise_on_failure and not record.converged:
             detail = f": {message}" if message else ""
