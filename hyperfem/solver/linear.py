@@ -1,11 +1,37 @@
-"""One linear-solver configuration for every solve in hyperfem.
+r"""One linear-solver configuration for every solve in hyperfem, chosen from the problem.
 
 Newton's tangent solves (through SNES), the boundary-increment predictor, the
 initial acceleration of a dynamic run, fibre projections and the Laplace fibre
-rule all get their KSP from here: the options (:data:`DIRECT` by default), a
-unique options prefix (:func:`unique_prefix`; nothing is left in PETSc's
-global options database), and an optional near-nullspace hook, so a scalable
-iterative method plugs in at this one place.
+rule all get their KSP from here: the options, a unique options prefix
+(:func:`unique_prefix`; nothing is left in PETSc's global options database),
+and an optional near-nullspace hook.
+
+:func:`choose_linear_solver` picks the method (any PETSc option given to the
+solver overrides it):
+
+* below :data:`DIRECT_THRESHOLD` unknowns, and for the mixed (u, p, θ)
+  problem: sparse LU with MUMPS (:data:`DIRECT`);
+* above it, for a displacement problem: AMG-preconditioned Krylov —
+  :data:`SYMMETRIC_ITERATIVE` (CG + GAMG) when the tangent is symmetric
+  (every load derives from Π: the Hessian of a potential, plus a mass term in
+  dynamics), :data:`NONSYMMETRIC_ITERATIVE` (GMRES + GAMG) with follower loads.
+  GAMG gets the rigid-body modes of the displacement space as its
+  near-nullspace (6 in 3D, 3 in 2D; :func:`rigid_body_modes`), so its coarse
+  spaces represent the motions the tangent barely resists.
+
+Inexact Newton with the energy line search. The Krylov solve stops at a
+fixed relative tolerance (``ksp_rtol`` :math:`10^{-6}`), not an
+Eisenstat–Walker forcing term. For a symmetric positive definite tangent
+:math:`K` every CG iterate :math:`d_k` (from :math:`d_0 = 0`) minimises the
+quadratic model :math:`	frac12 d^TKd - r^Td` over a Krylov space that
+contains :math:`r`, so :math:`r^Td_k \ge 	frac12 d_k^TKd_k > 0`: an inexact
+direction is still a descent direction of :math:`\Pi`, and the backtracking
+line search on :math:`\Pi` and the inversion pre-check work unchanged. With
+a fixed forcing term Newton converges linearly with rate about
+``ksp_rtol`` once in the quadratic regime, i.e. one or two iterations more
+than exact Newton at the default tolerances, without the early over-solving
+or the late under-solving that made Eisenstat–Walker stall the energy line
+search (50 iterations without convergence in the prototype).
 """
 
 from __future__ import annotations
@@ -14,14 +40,55 @@ import itertools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
+import numpy as np
 from petsc4py import PETSc
 
-__all__ = ["DIRECT", "LinearSolver", "unique_prefix"]
+__all__ = [
+    "DIRECT",
+    "DIRECT_THRESHOLD",
+    "NONSYMMETRIC_ITERATIVE",
+    "SYMMETRIC_ITERATIVE",
+    "LinearSolver",
+    "choose_linear_solver",
+    "describe",
+    "rigid_body_modes",
+    "unique_prefix",
+]
 
 DIRECT: dict[str, object] = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 """Sparse direct solve with MUMPS (both install routes ship it)."""
 
+_AMG: dict[str, object] = {
+    "pc_type": "gamg",
+    "mg_levels_ksp_type": "chebyshev",
+    "mg_levels_pc_type": "jacobi",
+    "pc_gamg_reuse_interpolation": True,
+    "ksp_rtol": 1e-6,
+    "ksp_atol": 1e-30,
+    "ksp_max_it": 1000,
+}
+
+SYMMETRIC_ITERATIVE: dict[str, object] = {"ksp_type": "cg", **_AMG}
+"""CG + smoothed-aggregation AMG (rigid-body near-nullspace) for symmetric tangents."""
+
+NONSYMMETRIC_ITERATIVE: dict[str, object] = {"ksp_type": "gmres", "ksp_gmres_restart": 100, **_AMG}
+"""GMRES + AMG for the non-symmetric tangents of follower loads."""
+
+DIRECT_THRESHOLD = 30_000
+"""Unknowns from which a displacement problem is solved iteratively.
+
+Measured (``benchmarks/scale.py``, bend, P1, this 2-core machine): the
+iterative solve is faster from about 10^4 unknowns on, and its advantage grows
+like n^0.6; below, LU is as fast and needs no tuning."""
+
 _counter = itertools.count()
+
+
+def describe(options: Mapping[str, object]) -> str:
+    """Short name of a KSP/PC configuration, e.g. ``"preonly+lu(mumps)"`` or ``"cg+gamg"``."""
+    ksp, pc = options.get("ksp_type", "?"), options.get("pc_type", "?")
+    factor = options.get("pc_factor_mat_solver_type") if pc in ("lu", "cholesky") else None
+    return f"{ksp}+{pc}" + (f"({factor})" if factor else "")
 
 
 def unique_prefix(kind: str) -> str:
@@ -41,6 +108,7 @@ class LinearSolver:
 
     options: Mapping[str, object] = field(default_factory=lambda: dict(DIRECT))
     near_nullspace: Callable[[PETSc.Mat], None] | None = None
+
 
     def ksp(self, comm, A: PETSc.Mat | None = None, kind: str = "linear") -> PETSc.KSP:
         """A KSP configured from :attr:`options` under a unique prefix (operators set if ``A`` is given).
@@ -76,3 +144,53 @@ class LinearSolver:
             return int(ksp.getConvergedReason())
         finally:
             ksp.destroy()
+
+
+def _global_size(V) -> int:
+    imap = V.dofmap.index_map
+    return int(imap.size_global * V.dofmap.index_map_bs)
+
+
+def rigid_body_modes(V, A: PETSc.Mat) -> list[PETSc.Vec]:
+    """Orthonormal rigid-body modes of the blocked displacement space ``V`` as vectors of ``A``'s layout.
+
+    Translations :math:`e_i` and rotations :math:`e_i \\times X` evaluated at the
+    dof coordinates (6 in 3D, 3 in 2D), orthonormalised (modified Gram–Schmidt,
+    collective).
+    """
+    from hyperfem.solver.constraints import rigid_modes
+
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local
+    x = V.tabulate_dof_coordinates()[:n_owned].T
+    vectors = []
+    for mode in rigid_modes(bs):
+        vec = A.createVecRight()
+        vec.array_w[:] = np.asarray(mode(x)).T.reshape(-1)
+        for other in vectors:
+            vec.axpy(-vec.dot(other), other)
+        vec.scale(1.0 / vec.norm())
+        vectors.append(vec)
+    return vectors
+
+
+def _near_nullspace_hook(V) -> Callable[[PETSc.Mat], None]:
+    def attach(A: PETSc.Mat) -> None:
+        A.setNearNullSpace(PETSc.NullSpace().create(vectors=rigid_body_modes(V, A), comm=A.comm))
+
+    return attach
+
+
+def choose_linear_solver(problem, threshold: int = DIRECT_THRESHOLD) -> LinearSolver:
+    """The linear solver for ``problem`` (see the module docstring for the rule).
+
+    Args:
+        problem: A :class:`~hyperfem.problem.protocol.SolidProblem`.
+        threshold: Unknowns from which a displacement problem is solved iteratively.
+    """
+    W = problem.u.function_space
+    V = problem.displacement_space()
+    if _global_size(W) < threshold or V is not W:
+        return LinearSolver()
+    options = SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE
+    return LinearSolver(dict(options), near_nullspace=_near_nullspace_hook(V))

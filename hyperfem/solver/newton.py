@@ -60,7 +60,7 @@ from dolfinx.la.petsc import _ghost_update
 from hyperfem.errors import ConvergenceError, ParameterError, SolverError
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
-from hyperfem.solver.linear import DIRECT, LinearSolver, unique_prefix
+from hyperfem.solver.linear import DIRECT, LinearSolver, choose_linear_solver, describe, unique_prefix
 
 __all__ = ["DEFAULT_PETSC_OPTIONS", "ROUNDOFF_FACTOR", "NewtonSolver", "RoundoffWarning", "SolveRecord"]
 
@@ -84,16 +84,18 @@ CONVERGED_ROUNDOFF = int(PETSc.SNES.ConvergedReason.CONVERGED_ITS)
 class RoundoffWarning(UserWarning):
     """The requested residual tolerance is below what floating point can resolve."""
 
-DEFAULT_PETSC_OPTIONS: dict[str, object] = {
+SNES_DEFAULTS: dict[str, object] = {
     "snes_type": "newtonls",
     "snes_linesearch_type": "bt",
     "snes_rtol": 1e-9,
     "snes_atol": 1e-10,
     "snes_stol": 0.0,
     "snes_max_it": 50,
-    **DIRECT,
 }
-"""Defaults of :class:`NewtonSolver`; user options are merged over these."""
+"""SNES defaults of :class:`NewtonSolver`; the KSP/PC part comes from its :class:`LinearSolver`."""
+
+DEFAULT_PETSC_OPTIONS: dict[str, object] = {**SNES_DEFAULTS, **DIRECT}
+"""SNES defaults plus the direct solver that small problems get (for reference; see :func:`~hyperfem.solver.linear.choose_linear_solver`)."""
 
 
 
@@ -118,6 +120,8 @@ class SolveRecord:
         indicators: The problem's consistency indicators (:meth:`check_solution`).
         message: Why the solve failed or was rejected (empty when it converged).
         ksp_reason: Converged reason of the last linear solve (negative: failed).
+        linear_solver: KSP and PC types of the tangent solves, e.g. ``cg+gamg``.
+        pc_setup_time: Seconds spent setting up the preconditioner (factorisation, AMG hierarchy).
     """
 
     converged: bool
@@ -135,6 +139,8 @@ class SolveRecord:
     indicators: dict = field(default_factory=dict)
     message: str = ""
     ksp_reason: int = 0
+    linear_solver: str = ""
+    pc_setup_time: float = 0.0
 
     def as_dict(self) -> dict:
         """JSON-serialisable form."""
@@ -173,7 +179,9 @@ class NewtonSolver:
             rigid-body motion free (the tangent is singular). Problems with
             ``rigid_motion_resisted`` (inertia) are not checked.
         linear_solver: The linear-solver configuration of the tangent solves
-            (default: MUMPS LU); its options sit between the SNES defaults
+            (default: :func:`~hyperfem.solver.linear.choose_linear_solver`:
+            MUMPS LU for small and mixed problems, AMG-preconditioned CG/GMRES
+            above the threshold); its options sit between the SNES defaults
             and ``petsc_options``, its near-nullspace hook is applied to the
             tangent matrix.
 
@@ -213,13 +221,13 @@ class NewtonSolver:
                     f"NewtonSolver: the Dirichlet conditions leave rigid-body motion unconstrained "
                     f"({', '.join(free)}); the tangent is singular — add a Clamp or PrescribedDisplacement"
                 )
-        defaults = dict(DEFAULT_PETSC_OPTIONS)
+        defaults = dict(SNES_DEFAULTS)
         if not problem.conservative:
             # No energy to judge steps by. Measured on the twist case (P2,
             # h = 1): residual-norm 'bt' 13 iterations, 'cp' 6, 'basic' 5
             # (unsafeguarded); 'cp' is the safeguarded choice.
             defaults["snes_linesearch_type"] = "cp"
-        self.linear_solver = LinearSolver() if linear_solver is None else linear_solver
+        self.linear_solver = choose_linear_solver(problem) if linear_solver is None else linear_solver
         self.options = {**defaults, **self.linear_solver.options, **(petsc_options or {})}
         try:
             self._nlp = fpetsc.NonlinearProblem(
@@ -237,6 +245,9 @@ class NewtonSolver:
             raise ParameterError(f"NewtonSolver: {self._describe_option_error(exc, petsc_options or {})}") from None
         snes = self._nlp.solver
         self.snes = snes
+        PETSc.Log.begin()  # for the preconditioner set-up time of each solve (PCSetUp event)
+        self._pc_setup = PETSc.Log.Event("PCSetUp")
+        self.linear_solver_name = describe(self.options)
         if self.linear_solver.near_nullspace is not None:
             self.linear_solver.near_nullspace(self._nlp.A)
         self._norms: list[float] = []
@@ -521,6 +532,7 @@ class NewtonSolver:
         self._callback_error = None
         self._inversion_giveup = False
         cutbacks0, accepts0 = self.inversion_cutbacks, self.roundoff_accepts
+        setup0 = self._pc_setup.getPerfInfo()["time"]
         snes = self.snes
         start = time.perf_counter()
         u = self.problem.u
@@ -592,6 +604,8 @@ class NewtonSolver:
             indicators=indicators,
             message=message,
             ksp_reason=ksp_reason,
+            linear_solver=self.linear_solver_name,
+            pc_setup_time=float(self.comm.allreduce(self._pc_setup.getPerfInfo()["time"] - setup0, op=MPI.MAX)),
         )
         if raise_on_failure and not record.converged:
             detail = f": {message}" if message else ""

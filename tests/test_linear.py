@@ -1,0 +1,124 @@
+"""The linear-solver layer: automatic choice, rigid-body near-nullspace, iterative = direct.
+
+The iterative path (CG/GMRES + GAMG) is what large problems get; here it is
+forced on small meshes (``threshold=0``) and compared with MUMPS LU on the
+same problem: the Newton solutions agree to the nonlinear tolerance, serially
+and on 2 ranks.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ufl
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc as fpetsc
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+import hyperfem as hf
+from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, twist_load
+from hyperfem.io import PointProbe
+from hyperfem.kinematics import isochoric_invariants
+from hyperfem.problem import SplitEnergy, solid_problem
+from hyperfem.solver.linear import DIRECT, DIRECT_THRESHOLD, choose_linear_solver, rigid_body_modes
+
+MESHES = Path(__file__).resolve().parent.parent / "meshes"
+
+
+def _beam(load, degree=1):
+    domain = hf.read_mesh(MESHES / "beam_h2.msh")
+    params = CantileverSpec().lame
+    return hf.HyperelasticProblem(
+        domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[load], degree=degree
+    )
+
+
+def test_rigid_body_modes_are_the_tangent_kernel():
+    """At the undeformed state (no Dirichlet rows) K r = 0 and r^T K r = 0 for all 6 modes; orthonormal."""
+    problem = _beam(bend_load(), degree=2)
+    A = fpetsc.assemble_matrix(fem.form(problem.jacobian))
+    A.assemble()
+    modes = rigid_body_modes(problem.V, A)
+    assert len(modes) == 6
+    scale = A.norm(PETSc.NormType.FROBENIUS)
+    Kr = A.createVecLeft()
+    for i, r in enumerate(modes):
+        A.mult(r, Kr)
+        assert Kr.norm() < 1e-10 * scale
+        for j, s in enumerate(modes):
+            assert r.dot(s) == pytest.approx(1.0 if i == j else 0.0, abs=1e-12)
+    # ... and zero residual: a rigid translation/rotation of the unloaded body stores no energy
+    problem.set_load_factor(0.0)
+    R = fem.form(problem.residual)
+    for r in modes[:3]:  # translations are exact rigid motions at any amplitude
+        problem.u.x.petsc_vec.array_w[:] = 0.3 * r.array_r
+        problem.u.x.scatter_forward()
+        b = fpetsc.assemble_vector(R)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        assert b.norm() < 1e-9 * scale
+
+
+def test_rigid_body_modes_2d():
+    mesh = dmesh.create_unit_square(MPI.COMM_WORLD, 3, 3)
+    V = fem.functionspace(mesh, ("Lagrange", 1, (2,)))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    eps = ufl.sym(ufl.grad(u))
+    A = fpetsc.assemble_matrix(fem.form(ufl.inner(eps, ufl.sym(ufl.grad(v))) * ufl.dx))
+    A.assemble()
+    modes = rigid_body_modes(V, A)
+    assert len(modes) == 3
+    Kr = A.createVecLeft()
+    for r in modes:
+        A.mult(r, Kr)
+        assert Kr.norm() < 1e-12 * A.norm(PETSc.NormType.FROBENIUS)
+
+
+def test_automatic_choice():
+    small = _beam(bend_load())
+    assert dict(choose_linear_solver(small).options) == DIRECT  # 1.1k unknowns < threshold
+    assert small.u.function_space.dofmap.index_map.size_global * 3 < DIRECT_THRESHOLD
+    bend = choose_linear_solver(small, threshold=0)
+    assert bend.options["ksp_type"] == "cg" and bend.options["pc_type"] == "gamg" and bend.near_nullspace
+    twist = choose_linear_solver(_beam(twist_load()), threshold=0)
+    assert twist.options["ksp_type"] == "gmres"  # follower load: non-symmetric tangent
+    mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1)
+    domain = hf.Domain.from_locators(mesh, {"x0": lambda x: np.isclose(x[0], 0.0)})
+    mixed = solid_problem(domain, SplitEnergy(lambda F: 0.5 * (isochoric_invariants(F)[0] - 3.0), 1e3))
+    assert dict(choose_linear_solver(mixed, threshold=0).options) == DIRECT  # saddle point: LU
+
+
+@pytest.mark.parametrize("load", [bend_load, twist_load], ids=["bend-cg", "twist-gmres"])
+def test_iterative_equals_direct(load):
+    results = []
+    for threshold in (10**12, 0):
+        problem = _beam(load())
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, threshold=threshold))
+        steps = hf.solve_quasistatic(solver)
+        rec = steps[-1].solve
+        assert rec.linear_solver == ("preonly+lu(mumps)" if threshold else f"{solver.options['ksp_type']}+gamg")
+        assert rec.pc_setup_time >= 0.0
+        if not threshold:
+            assert rec.linear_iterations > rec.iterations  # Krylov iterations counted
+        results.append(PointProbe(problem.domain.mesh, [TEST_POINT])(problem.u)[0])
+    np.testing.assert_allclose(results[1], results[0], rtol=1e-8, atol=1e-10)
+
+
+def test_iterative_prescribed_displacement_with_predictor():
+    """The predictor's tangent solve goes through the same (iterative) KSP."""
+    results = []
+    for threshold in (10**12, 0):
+        problem = hf.HyperelasticProblem(
+            hf.read_mesh(MESHES / "beam_h2.msh"),
+            lambda F: hf.materials.neo_hookean(F, CantileverSpec().lame),
+            bcs=[hf.Clamp("clamped"), hf.PrescribedDisplacement("free_end", [-1.0], components=[1])],
+        )
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, threshold=threshold))
+        steps = hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.5))
+        assert steps[0].solve.predictor
+        results.append(problem.u.x.array.copy())
+    np.testing.assert_allclose(results[1], results[0], atol=1e-9)
