@@ -1,0 +1,256 @@
+"""Scaling of a nonlinear solve with the number of unknowns: hyperfem vs plain DOLFINx + MUMPS.
+
+The cantilever bend (or twist) of seed 003 on ``create_box`` meshes of the
+10 x 4 x 4 beam with (2N, N, N) boxes of 6 tetrahedra, full load in one step.
+For each size it runs, each in a fresh process (clean peak memory), on 1 and
+2 ranks:
+
+* ``hyperfem``: :class:`~hyperfem.NewtonSolver` with its automatic linear
+  solver (MUMPS below the threshold, CG + GAMG with rigid-body modes above);
+* ``baseline``: the best plain-DOLFINx set-up, ``NonlinearProblem`` with SNES
+  ``newtonls``/``basic`` (full Newton steps) and MUMPS LU, skipped above
+  ``--max-lu`` unknowns (memory).
+
+Printed per run, one JSON object: unknowns, ranks, Newton and Krylov
+iterations, time in residual assembly, tangent assembly, preconditioner set-up
+and Krylov solve (PETSc log events), total solve time, peak RSS (summed over
+ranks), the test-point displacement. At the end: the fitted exponent of time
+and memory vs unknowns, the 2-rank parallel efficiency and the speed-up over
+the baseline at each size; ``--plot`` writes time and memory vs unknowns (PNG).
+
+    python benchmarks/scale.py --sizes 8 12 16 24 32 48 64 --ranks 1 2 --output benchmarks/results/scale.jsonl --plot benchmarks/results/scale.png
+    python benchmarks/scale.py --smoke          # tiny sizes; what the test suite runs
+"""
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import resource  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+EVENTS = ("SNESFunctionEval", "SNESJacobianEval", "PCSetUp", "KSPSolve")
+
+
+def _box(N: int, comm):
+    import numpy as np
+    from dolfinx import mesh as dmesh
+
+    import hyperfem as hf
+
+    mesh = dmesh.create_box(comm, [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]], [2 * N, N, N], dmesh.CellType.tetrahedron)
+    return hf.Domain.from_locators(
+        mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
+    )
+
+
+def _events():
+    from petsc4py import PETSc
+
+    return {name: PETSc.Log.Event(name).getPerfInfo()["time"] for name in EVENTS}
+
+
+def single(args) -> None:
+    """One run in this process (called through a subprocess by :func:`main`)."""
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    import numpy as np
+
+    import hyperfem as hf
+    from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, twist_load
+    from hyperfem.io import PointProbe
+
+    PETSc.Log.begin()
+    comm = MPI.COMM_WORLD
+    domain = _box(args.N, comm)
+    params = CantileverSpec().lame
+    load = bend_load() if args.case == "bend" else twist_load()
+    row = {"variant": args.variant, "case": args.case, "N": args.N, "degree": args.degree, "ranks": comm.size}
+    t0 = time.perf_counter()
+    if args.variant == "hyperfem":
+        problem = hf.HyperelasticProblem(
+            domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[load],
+            degree=args.degree,
+        )
+        solver = hf.NewtonSolver(problem)
+        problem.set_load_factor(1.0)
+        setup = time.perf_counter() - t0
+        before = _events()
+        t1 = time.perf_counter()
+        rec = solver.solve(raise_on_failure=True)
+        solve = time.perf_counter() - t1
+        u = problem.u
+        row.update(
+            linear_solver=rec.linear_solver, newton_iterations=rec.iterations, krylov_iterations=rec.linear_iterations
+        )
+    else:
+        import ufl
+        from dolfinx import fem
+        from dolfinx.fem.petsc import NonlinearProblem
+
+        mu, lmbda = params.mu, params.lmbda
+        V = fem.functionspace(domain.mesh, ("Lagrange", args.degree, (3,)))
+        u, v = fem.Function(V), ufl.TestFunction(V)
+        F = ufl.variable(ufl.Identity(3) + ufl.grad(u))
+        J = ufl.det(F)
+        psi = mu / 2 * (ufl.tr(F.T * F) - 3) - mu * ufl.ln(J) + lmbda / 2 * ufl.ln(J) ** 2
+        md = {"quadrature_degree": 1 if args.degree == 1 else 2 * args.degree}
+        X = ufl.SpatialCoordinate(domain.mesh)
+        if args.case == "bend":
+            t_load = ufl.as_vector((0.0, -5e3, 0.0))
+        else:
+            x = X + u
+            t_load = 5e3 * ufl.as_vector((0.0, x[2], -x[1]))
+        ds = domain.ds("free_end", metadata={"quadrature_degree": 2 * args.degree})
+        R = ufl.inner(ufl.diff(psi, F), ufl.grad(v)) * ufl.dx(metadata=md) - ufl.dot(t_load, v) * ds
+        dofs = fem.locate_dofs_topological(V, 2, domain.facets("clamped"))
+        bc = fem.dirichletbc(np.zeros(3), dofs, V)
+        opts = {
+            "snes_type": "newtonls", "snes_linesearch_type": "basic", "snes_rtol": 1e-9, "snes_atol": 1e-10,
+            "snes_max_it": 50, "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
+        }
+        nlp = NonlinearProblem(R, u, bcs=[bc], petsc_options_prefix="baseline_", petsc_options=opts)
+        setup = time.perf_counter() - t0
+        before = _events()
+        t1 = time.perf_counter()
+        nlp.solve()
+        solve = time.perf_counter() - t1
+        snes = nlp.solver
+        assert snes.getConvergedReason() > 0, snes.getConvergedReason()
+        row.update(
+            linear_solver="preonly+lu(mumps)", newton_iterations=snes.getIterationNumber(),
+            krylov_iterations=snes.getLinearSolveIterations(),
+        )
+    after = _events()
+    V = u.function_space
+    row["unknowns"] = int(V.dofmap.index_map.size_global * V.dofmap.index_map_bs)
+    row.update({f"time_{k}": comm.allreduce(after[k] - before[k], op=MPI.MAX) for k in EVENTS})
+    row["time_setup"] = comm.allreduce(setup, op=MPI.MAX)
+    row["time_solve"] = comm.allreduce(solve, op=MPI.MAX)
+    row["peak_rss_gb"] = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.SUM) / 1024**2
+    row["test_point"] = [float(c) for c in PointProbe(domain.mesh, [TEST_POINT])(u)[0]]
+    if comm.rank == 0:
+        print("RESULT " + json.dumps(row), flush=True)
+
+
+def _launch(N, degree, case, variant, ranks, timeout):
+    mpiexec = Path(sys.executable).parent / "mpiexec"
+    mpiexec = str(mpiexec) if mpiexec.exists() else "mpiexec"
+    cmd = [sys.executable, __file__, "--single", str(N), "--degree", str(degree), "--case", case, "--variant", variant]
+    if ranks > 1:
+        cmd = [mpiexec, "-n", str(ranks), *cmd]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    for line in out.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[7:])
+    return {"variant": variant, "N": N, "ranks": ranks, "error": (out.stderr or out.stdout).strip().splitlines()[-1:]}
+
+
+def _fit(rows, key):
+    import numpy as np
+
+    pts = [(r["unknowns"], r[key]) for r in rows if "error" not in r and r["unknowns"] >= 1e4 and r[key] > 0]
+    if len(pts) < 2:
+        return None
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", type=int, nargs="+", default=[4, 8, 12, 16, 24, 32])
+    p.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    p.add_argument("--degree", type=int, default=1)
+    p.add_argument("--case", choices=("bend", "twist"), default="bend")
+    p.add_argument("--max-lu", type=int, default=250_000, help="largest size the MUMPS baseline runs at")
+    p.add_argument("--timeout", type=float, default=1200.0, help="seconds per run")
+    p.add_argument("--output", type=Path, default=None, help="append JSON lines here")
+    p.add_argument("--plot", type=Path, default=None, help="PNG of time and memory vs unknowns")
+    p.add_argument("--smoke", action="store_true", help="two tiny sizes, 1 rank (for the test suite)")
+    p.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
+    p.add_argument("--variant", default="hyperfem", help=argparse.SUPPRESS)
+    args = p.parse_args()
+    if args.single is not None:
+        args.N = args.single
+        single(args)
+        return
+    if args.smoke:
+        args.sizes, args.ranks = [2, 3], [1]
+    rows = []
+    for N in args.sizes:
+        for ranks in args.ranks:
+            for variant in ("hyperfem", "baseline"):
+                approx = 3 * (2 * N * args.degree + 1) * (N * args.degree + 1) ** 2
+                if variant == "baseline" and approx > args.max_lu:
+                    continue
+                row = _launch(N, args.degree, args.case, variant, ranks, args.timeout)
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+                if args.output is not None:
+                    with open(args.output, "a") as f:
+                        f.write(json.dumps(row) + "\n")
+    summary = {"summary": True, "case": args.case, "degree": args.degree}
+    for variant in ("hyperfem", "baseline"):
+        for ranks in args.ranks:
+            sel = [r for r in rows if r.get("variant") == variant and r.get("ranks") == ranks]
+            summary[f"time_exponent_{variant}_{ranks}"] = _fit(sel, "time_solve")
+            summary[f"memory_exponent_{variant}_{ranks}"] = _fit(sel, "peak_rss_gb")
+    by = {(r.get("variant"), r.get("ranks"), r.get("N")): r for r in rows if "error" not in r}
+    summary["speedup_over_baseline_1rank"] = {
+        N: by[("baseline", 1, N)]["time_solve"] / by[("hyperfem", 1, N)]["time_solve"]
+        for N in args.sizes if ("baseline", 1, N) in by and ("hyperfem", 1, N) in by
+    }
+    summary["test_point_rel_diff_vs_baseline"] = {
+        N: max(
+            float(sum((a - b) ** 2 for a, b in zip(by[("hyperfem", r, N)]["test_point"], by[("baseline", r, N)]["test_point"])) ** 0.5
+                  / sum(b**2 for b in by[("baseline", r, N)]["test_point"]) ** 0.5)
+            for r in args.ranks if ("hyperfem", r, N) in by and ("baseline", r, N) in by
+        )
+        for N in args.sizes if any(("hyperfem", r, N) in by and ("baseline", r, N) in by for r in args.ranks)
+    }
+    summary["parallel_efficiency_2ranks"] = {
+        N: by[("hyperfem", 1, N)]["time_solve"] / (2 * by[("hyperfem", 2, N)]["time_solve"])
+        for N in args.sizes if ("hyperfem", 1, N) in by and ("hyperfem", 2, N) in by
+    }
+    print(json.dumps(summary), flush=True)
+    if args.output is not None:
+        with open(args.output, "a") as f:
+            f.write(json.dumps(summary) + "\n")
+    if args.plot is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+        for variant in ("hyperfem", "baseline"):
+            for ranks in args.ranks:
+                sel = sorted(
+                    (r for r in rows if r.get("variant") == variant and r.get("ranks") == ranks and "error" not in r),
+                    key=lambda r: r["unknowns"],
+                )
+                if not sel:
+                    continue
+                n = [r["unknowns"] for r in sel]
+                label = f"{variant}, {ranks} rank(s)"
+                axes[0].loglog(n, [r["time_solve"] for r in sel], "o-", label=label)
+                axes[1].loglog(n, [r["peak_rss_gb"] for r in sel], "o-", label=label)
+        axes[0].set(xlabel="unknowns", ylabel="solve time (s)", title=f"{args.case}, P{args.degree}")
+        axes[1].set(xlabel="unknowns", ylabel="peak RSS, all ranks (GB)")
+        for ax in axes:
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend()
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=120)
+
+
+if __name__ == "__main__":
+    main()
