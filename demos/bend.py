@@ -44,8 +44,8 @@ from mpi4py import MPI  # noqa: E402
 import hyperfem as hf  # noqa: E402
 from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, convergence_note, mesh_size_of  # noqa: E402
 from hyperfem.cli import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
-from hyperfem.driver import format_summary, run_quasistatic  # noqa: E402
-from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
+from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.simulation import VTX, Derived, JSONSummary, Probe, Simulation, format_summary  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_MESH = ROOT / "meshes" / "beam_h1.msh"
@@ -64,7 +64,9 @@ def parse(argv=None):
 # %% [markdown]
 # ## Model
 # Boundary conditions and loads refer to the physical groups of the mesh
-# (`clamped`, `free_end`), never to integers.
+# (`clamped`, `free_end`), never to integers. The run is a `Simulation`: after
+# every accepted load step the probe records the test-point displacement, and
+# the VTX file and the JSON summary are written, so a later failure loses nothing.
 
 
 # %%
@@ -82,18 +84,16 @@ def main(argv=None) -> dict:
         loads=[bend_load()],
         degree=args.degree,
     )
-    solver = hf.NewtonSolver(problem)
-    summary = run_quasistatic(
-        solver,
-        "bend",
-        args.output,
-        probe_points=[TEST_POINT],
-        stepping=hf.LoadStepping(initial_increment=args.increment),
-        extra={"case": "bend", "E": spec.E, "nu": spec.nu},
-    )
     h = args.h if args.h else mesh_size_of(args.mesh)
-    summary["convergence"] = convergence_note("bend", args.degree, h, summary["probe_displacement"][0])
-    write_json(summary["files"]["summary"], summary, comm)
+    outputs = [
+        Probe([TEST_POINT]),
+        Derived("convergence", lambda s: convergence_note("bend", args.degree, h, s["probe_displacement"][0])),
+        VTX(args.output / "bend.bp"),
+        JSONSummary(args.output / "bend.json"),
+    ]
+    info = {"case": "bend", "E": spec.E, "nu": spec.nu}
+    stepping = hf.LoadStepping(initial_increment=args.increment)
+    summary = Simulation(problem, hf.NewtonSolver(problem), stepping, outputs, name="bend", info=info).run()
     if comm.rank == 0:
         print(format_summary(summary), flush=True)
     return summary

@@ -49,18 +49,23 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import json  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402
 
-from dolfinx.io import VTXWriter  # noqa: E402
-
 import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
-from hyperfem.cli import ArgumentParser, nonnegative_float, positive_float, positive_int, run, unit_interval  # noqa: E402
-from hyperfem.dynamics.cantilever import CASES, TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
-from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
+from hyperfem.cases.cantilever_dynamics import CASES, TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
+from hyperfem.cli import (  # noqa: E402
+    ArgumentParser,
+    nonnegative_float,
+    positive_float,
+    positive_int,
+    run,
+    unit_interval,
+)
+from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.simulation import VTX, CSVLog, Derived, JSONSummary, Progress, Recorder, Simulation  # noqa: E402
 
 SCHEMES = {
     "newmark": lambda a: dyn.Newmark(),
@@ -116,7 +121,6 @@ def main(argv=None) -> dict:
     args = parse(argv)
     comm = MPI.COMM_WORLD
     out = ensure_output_dir(args.output / args.case, comm)  # fail on every rank before any work
-    wall0 = time.perf_counter()
     spec = CantileverDynamics()
     domain = hf.read_mesh(args.mesh, comm) if args.mesh else hf.beam_mesh(h=args.h, comm=comm)
     base, must_hit = cantilever_problem(args.case, domain, spec, degree=args.degree)
@@ -129,36 +133,36 @@ def main(argv=None) -> dict:
     options = {"snes_rtol": 1e-8, "snes_atol": 1e-8, "snes_stol": 1e-10, "snes_max_it": 25}
     solver = hf.NewtonSolver(problem, options)
     problem.initial_acceleration()
-    diagnostics = dyn.Diagnostics(problem, [TEST_POINT])
-    diagnostics.record()
 
     # %% [markdown]
     # ## Output
-    # Displacement and velocity go to a VTX (ADIOS2) time series at the output
-    # times (which are must-hit times), the diagnostics to CSV after every step.
+    # After every accepted step the diagnostics (energies, volume, min J, the
+    # test-point position) go to one CSV line and the summary to JSON; the
+    # displacement and velocity go to a VTX (ADIOS2) time series at the output
+    # times, which are must-hit times.
 
     # %%
+    diagnostics = dyn.Diagnostics(problem, [TEST_POINT])
     n_out = int(round(args.t_end / args.output_every)) if args.output_every > 0 else 0
     output_times = [k * args.output_every for k in range(1, n_out + 1)]
-    writer = None
-    if not args.no_vtx:
-        writer = VTXWriter(comm, out / "displacement.bp", [problem.u, problem.v], engine="BP4")
-        writer.write(0.0)
-    pending = list(output_times)
 
-    def on_step(record: dyn.TimeStepRecord) -> None:
-        row = diagnostics.record(record)
-        while pending and pending[0] <= record.time + 1e-9:
-            pending.pop(0)
-            if writer is not None:
-                writer.write(record.time)
-        if not args.quiet and comm.rank == 0 and record.step % 10 == 0:
-            print(
-                f"t = {row['time']:.4f} dt = {row['dt']:.4g} its = {row['newton_iterations']} "
-                f"K = {row['kinetic_energy']:.4g} Psi = {row['elastic_energy']:.4g} "
-                f"minJ = {row['min_J']:.3f} x_p = ({row['p0_x']:.3f}, {row['p0_y']:.3f}, {row['p0_z']:.3f})",
-                flush=True,
-            )
+    def line(row: dict) -> str:
+        return (
+            f"t = {row['time']:.4f} dt = {row['dt']:.4g} its = {row['newton_iterations']} "
+            f"K = {row['kinetic_energy']:.4g} Psi = {row['elastic_energy']:.4g} "
+            f"minJ = {row['min_J']:.3f} x_p = ({row['p0_x']:.3f}, {row['p0_y']:.3f}, {row['p0_z']:.3f})"
+        )
+
+    outputs = [
+        Recorder(diagnostics),
+        Derived("final_test_point", lambda s: [diagnostics.rows[-1][f"p0_{a}"] for a in "xyz"]),
+        CSVLog(out / "diagnostics.csv"),
+        JSONSummary(out / "summary.json", rows=False),
+    ]
+    if not args.no_vtx:
+        outputs.append(VTX(out / "displacement.bp", times=output_times))
+    if not args.quiet:
+        outputs.append(Progress(line, every=10, initial=False))
 
     # %% [markdown]
     # ## Time stepping
@@ -173,36 +177,24 @@ def main(argv=None) -> dict:
         tolerance=args.tol,
         must_hit=[*must_hit, *output_times],
     )
-    error = None
-    try:
-        dyn.integrate(problem, solver, stepping, on_step=on_step)
-    except hf.ConvergenceError as exc:  # keep what was computed
-        error = str(exc)
-        if comm.rank == 0:
-            print(f"stopped: {error}", flush=True)
-    if writer is not None:
-        writer.close()
-    wall = time.perf_counter() - wall0
-    summary = {
+    info = {
         "case": args.case,
         "scheme": scheme.name,
         "h": args.h,
-        "degree": args.degree,
         "lumped": args.lumped,
         "adaptive": not args.fixed,
         "tolerance": args.tol,
-        "ranks": comm.size,
-        "dofs": domain.mesh.topology.index_map(0).size_global * 3,
-        "cells": domain.mesh.topology.index_map(3).size_global,
-        "wall_time": wall,
-        "error": error,
-        **diagnostics.summary(),
-        "final_test_point": [diagnostics.rows[-1][f"p0_{a}"] for a in "xyz"],
     }
-    diagnostics.write_csv(out / "diagnostics.csv")
-    write_json(out / "summary.json", summary, comm)
+    sim = Simulation(problem, solver, stepping, outputs, name=f"dynamics {args.case}", info=info)
+    try:
+        sim.run()
+    except hf.ConvergenceError as exc:  # what was computed is written; report and return it
+        if comm.rank == 0:
+            print(f"stopped: {exc}", flush=True)
+    summary = sim.summary(rows=False)
     if comm.rank == 0 and not args.quiet:
-        print(json.dumps(summary, indent=2))
+        shown = {k: v for k, v in summary.items() if k not in ("newton_iterations", "petsc_options")}
+        print(json.dumps(shown, indent=2, default=str))
     return summary
 
 

@@ -15,10 +15,19 @@ import csv
 from pathlib import Path
 
 
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
 def read(path: Path) -> dict[str, list[float]]:
+    """The numeric columns of a diagnostics CSV (text columns such as the SNES reason are left out)."""
     with path.open() as fh:
         rows = list(csv.DictReader(fh))
-    return {k: [float(r[k]) for r in rows] for k in rows[0]}
+    columns = {k: [_number(r[k]) for r in rows] for k in rows[0]}
+    return {k: v for k, v in columns.items() if all(x is not None for x in v)}
 
 
 def main(argv=None) -> Path:

@@ -35,8 +35,8 @@ from mpi4py import MPI  # noqa: E402
 import hyperfem as hf  # noqa: E402
 from hyperfem.cases import TEST_POINT, CantileverSpec, twist_load, convergence_note, mesh_size_of  # noqa: E402
 from hyperfem.cli import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
-from hyperfem.driver import format_summary, run_quasistatic  # noqa: E402
-from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
+from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.simulation import VTX, Derived, JSONSummary, Probe, Simulation, format_summary  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_MESH = ROOT / "meshes" / "beam_h1.msh"
@@ -50,6 +50,12 @@ def parse(argv=None):
     p.add_argument("--increment", type=fraction, default=1.0, help="initial load increment, in (0, 1]")
     p.add_argument("--output", type=Path, default=Path("output"), help="output folder")
     return p.parse_args(argv)
+
+
+# %% [markdown]
+# ## Model
+# As in `bend.py`: a `Simulation` with a probe at the test point, a VTX file
+# and a JSON summary written after every accepted load step.
 
 
 # %%
@@ -68,18 +74,16 @@ def main(argv=None) -> dict:
         degree=args.degree,
     )
     assert not problem.conservative  # follower load: residual-based line search
-    solver = hf.NewtonSolver(problem)
-    summary = run_quasistatic(
-        solver,
-        "twist",
-        args.output,
-        probe_points=[TEST_POINT],
-        stepping=hf.LoadStepping(initial_increment=args.increment),
-        extra={"case": "twist", "E": spec.E, "nu": spec.nu},
-    )
     h = args.h if args.h else mesh_size_of(args.mesh)
-    summary["convergence"] = convergence_note("twist", args.degree, h, summary["probe_displacement"][0])
-    write_json(summary["files"]["summary"], summary, comm)
+    outputs = [
+        Probe([TEST_POINT]),
+        Derived("convergence", lambda s: convergence_note("twist", args.degree, h, s["probe_displacement"][0])),
+        VTX(args.output / "twist.bp"),
+        JSONSummary(args.output / "twist.json"),
+    ]
+    info = {"case": "twist", "E": spec.E, "nu": spec.nu}
+    stepping = hf.LoadStepping(initial_increment=args.increment)
+    summary = Simulation(problem, hf.NewtonSolver(problem), stepping, outputs, name="twist", info=info).run()
     if comm.rank == 0:
         print(format_summary(summary), flush=True)
     return summary

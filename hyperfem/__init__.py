@@ -11,11 +11,14 @@ named physical groups, and solve with PETSc SNES:
 ...     domain, lambda F: hf.materials.neo_hookean(F, params),
 ...     bcs=[hf.Clamp("clamped")], loads=[hf.DeadTraction("free_end", (0, -5e3, 0))])
 >>> steps = hf.solve_quasistatic(hf.NewtonSolver(problem))
+
+Runs with output (VTX, probes, reaction forces, per-step CSV/JSON) are a
+:class:`~hyperfem.simulation.Simulation`, for statics and dynamics alike.
 """
 
 from mpi4py import MPI  # noqa: F401  (must precede dolfinx / petsc4py)
 
-from hyperfem import errors, kinematics, materials, mesh
+from hyperfem import errors, kinematics, materials, mesh, simulation
 from hyperfem.errors import (
     ConvergenceError,
     HyperfemError,
@@ -44,6 +47,8 @@ from hyperfem.solver import (
     StepRecord,
     solve_quasistatic,
 )
+from hyperfem.simulation import Simulation
+from hyperfem.solver.stepping import StepPolicy
 
 __version__ = "0.1.0"
 
@@ -66,7 +71,9 @@ __all__ = [
     "OutputError",
     "ParameterError",
     "PrescribedDisplacement",
+    "Simulation",
     "SolveRecord",
+    "StepPolicy",
     "StepRecord",
     "UnknownGroupError",
     "beam_mesh",
@@ -75,5 +82,6 @@ __all__ = [
     "materials",
     "mesh",
     "read_mesh",
+    "simulation",
     "solve_quasistatic",
 ]

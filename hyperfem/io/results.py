@@ -1,9 +1,11 @@
-"""Writing results: VTX (ADIOS2) files for ParaView and JSON summaries.
+"""Writing results: VTX (ADIOS2) files for ParaView and JSON files.
 
-File-system work happens on rank 0; its outcome is broadcast so that a
-folder that cannot be created or written raises the same
-:class:`~hyperfem.errors.OutputError` on every rank instead of leaving the
-other ranks waiting in a collective call.
+JSON files and folder checks are written by rank 0 (:func:`on_rank0`); its
+outcome is broadcast so that a folder that cannot be created or written
+raises the same :class:`~hyperfem.errors.OutputError` on every rank instead
+of leaving the other ranks waiting in a collective call. VTX files are
+written collectively by ADIOS2. What a run writes, and when, is decided by the
+outputs of :class:`~hyperfem.simulation.Simulation`.
 """
 
 from __future__ import annotations
@@ -95,6 +97,9 @@ def _jsonable(obj):
 def write_json(path: str | Path, data: dict, comm) -> Path:
     """Write ``data`` as JSON from rank 0 (all ranks must call it).
 
+    The text goes to a temporary file that then replaces ``path``, so a run
+    killed while writing leaves the previous version, never a truncated one.
+
     Returns:
         The path.
 
@@ -102,27 +107,32 @@ def write_json(path: str | Path, data: dict, comm) -> Path:
         OutputError: On every rank, if rank 0 cannot write the file.
     """
     path = Path(path)
-    text = json.dumps(_jsonable(data), indent=2, default=str) + "\n"
 
     def write() -> None:
+        text = json.dumps(_jsonable(data), indent=2, default=str) + "\n"
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        partial = path.with_name(f".{path.name}.partial")
+        partial.write_text(text)
+        os.replace(partial, path)
 
     on_rank0(comm, write, f"cannot write {path}")
     return path
 
 
 class VTXOutput:
-    """A VTX (``.bp``) time series of one or more functions on the same element.
+    """A VTX (``.bp``) time series of one or more functions, for ParaView.
 
-    Each function is interpolated into an output space of Lagrange degree
-    ``degree`` (default: the highest degree among them), so displacement, stresses
-    and fields of other degrees can be written to one file.
+    VTX stores one element for all its functions, so each function is
+    interpolated into a common Lagrange space of degree ``degree`` (default:
+    the highest degree among them): continuous unless one of the functions
+    is discontinuous, then discontinuous (a DG0 cell field stays cell-wise,
+    a P2 displacement next to it is represented exactly). Functions already on
+    that element are copied unchanged.
 
     Args:
         comm: Communicator.
-        path: Output ``.bp`` folder.
-        functions: Functions to write (their names appear in ParaView).
+        path: Output ``.bp`` folder (its parent is created and checked on every rank).
+        functions: Functions on one mesh (their names appear in ParaView).
         degree: Lagrange degree of the written fields.
     """
 
@@ -130,20 +140,24 @@ class VTXOutput:
         self.path = Path(path)
         ensure_output_dir(self.path.parent, comm)
         mesh = functions[0].function_space.mesh
+        elements = [f.function_space.ufl_element() for f in functions]
+        discontinuous = any(e.discontinuous for e in elements)
         if degree is None:
-            degree = max(max(1, f.function_space.ufl_element().embedded_superdegree) for f in functions)
+            degree = max(e.embedded_superdegree for e in elements)
+        family = "DG" if discontinuous else "Lagrange"
+        degree = degree if discontinuous else max(1, degree)
         self._pairs = []
         out = []
         for f in functions:
             shape = f.function_space.value_shape
-            V = fem.functionspace(mesh, ("Lagrange", degree, shape))
+            V = fem.functionspace(mesh, (family, degree, shape) if shape else (family, degree))
             g = fem.Function(V, name=f.name)
             self._pairs.append((f, g))
             out.append(g)
         self._writer = io.VTXWriter(comm, str(self.path), out, engine="BP4")
 
     def write(self, t: float) -> None:
-        """Interpolate the functions and append time ``t``."""
+        """Interpolate the functions into the output space and append a frame at time ``t``."""
         for f, g in self._pairs:
             g.interpolate(f)
         self._writer.write(float(t))

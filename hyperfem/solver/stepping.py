@@ -1,32 +1,173 @@
-"""Quasi-static load stepping with automatic cutback.
+r"""Stepping: one loop that takes a run from its time to an end time, with cutback and growth.
 
-The load factor ``s`` goes from its current value to ``target``. A step that
-fails (SNES diverged, or an inverted element) is undone and retried with half
-the increment; after an easy step (few Newton iterations) the increment grows.
-Below ``min_increment`` a :class:`~hyperfem.errors.ConvergenceError` names the
-last load factor reached; completed steps have already been handed to the
-``on_step`` callback, so their results are never lost.
+A *stage* owns the state of a run and takes one step at a time
+(:class:`Stage`): :class:`QuasiStaticStage` moves the loads of a problem to
+the new time and solves for equilibrium; :class:`DynamicStage` takes a time
+step of an :class:`~hyperfem.dynamics.IncrementalProblem`. :func:`run_steps`
+drives either under a :class:`StepPolicy`:
+
+* the nominal increment starts at ``increment``. Steps land exactly on every
+  *must-hit* time and on ``end``: ``landing="clip"`` shortens the one step that
+  would pass such a time, ``landing="equal"`` splits the interval to it into
+  equal steps no longer than the increment (no sliver steps; the nominal
+  increment is unchanged);
+* an attempt fails when Newton does not converge or (``reject_inversion``) the
+  state has :math:`J \le 0` at a quadrature point. The stage is restored and
+  the step retried with ``cutback`` times its length, which also becomes the
+  nominal increment; below ``min_increment`` a
+  :class:`~hyperfem.errors.ConvergenceError` names the time reached;
+* with a ``tolerance``, step doubling (seed 003 §5.7.7): one step of
+  :math:`\Delta t` and two of :math:`\Delta t/2` from the same state. If the
+  nodal positions differ by more,
+
+  .. math::
+      e = \max_\text{nodes} \bigl|x^{(\Delta t)} - x^{(\Delta t/2, \Delta t/2)}\bigr| > \text{tol},
+
+  the attempt fails (and is cut back); otherwise the more accurate
+  two-half-step result is kept;
+* after ``grow_after`` consecutive accepted *easy* steps (no solve needed more
+  than ``easy_iterations`` Newton iterations; every step is easy when that is
+  ``None``) the increment is multiplied by ``growth``, up to ``max_increment``.
+
+``t`` is time throughout: the pseudo-time (load factor) of a quasi-static ramp
+or the physical time of a dynamic run. An ``end`` below the stage's time ramps
+down (unloading). Every accepted step is handed to ``on_step`` before the next
+one starts, so a later failure loses nothing.
+
+:class:`LoadStepping` (for :func:`solve_quasistatic`) and :class:`TimeStepping`
+(for :func:`integrate`) are the two presets of the policy, with the parameters
+and defaults they always had.
 """
 
 from __future__ import annotations
 
+import math
 import numbers
-from collections.abc import Callable
+import time as _time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, ParameterError
-from hyperfem.materials.parameters import check_positive
+from hyperfem.materials.parameters import check_positive, is_finite_number
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 
-__all__ = ["LoadStepping", "StepRecord", "solve_quasistatic"]
+__all__ = [
+    "LANDINGS",
+    "DynamicStage",
+    "LoadStepping",
+    "QuasiStaticStage",
+    "Stage",
+    "StepPolicy",
+    "StepRecord",
+    "TimeStepRecord",
+    "TimeStepping",
+    "integrate",
+    "run_steps",
+    "solve_quasistatic",
+]
+
+LANDINGS = ("clip", "equal")
+"""How steps land on must-hit times (see :class:`StepPolicy`)."""
+
+
+def _check_count(where: str, name: str, value) -> None:
+    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
+        raise ParameterError(f"{where}: {name} must be an integer >= 1, got {value!r}")
+
+
+def _check_finite(where: str, name: str, value) -> None:
+    if not is_finite_number(value):
+        raise ParameterError(f"{where}: {name} must be a finite number, got {value!r}")
+
+
+# -- policy -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class StepPolicy:
+    """How a run steps from its time to ``end`` (see the module docstring).
+
+    Attributes:
+        end: Time to reach (below the start: ramp down).
+        increment: First nominal increment (> 0).
+        min_increment: Smallest step before giving up (default ``increment / 1024``).
+        max_increment: Largest step (default ``increment``; ``16 increment`` with a ``tolerance``).
+        cutback: Factor in (0, 1) applied to a failed step.
+        growth: Factor (>= 1) applied to the increment after ``grow_after`` easy steps.
+        grow_after: Consecutive accepted easy steps before growing.
+        easy_iterations: A step is easy when none of its solves took more
+            Newton iterations; ``None``: every accepted step is easy.
+        must_hit: Times that steps land on exactly (ends of ramps, output times).
+        landing: ``"clip"`` (shorten the step that would pass a must-hit time)
+            or ``"equal"`` (equal steps up to it).
+        tolerance: Step-doubling tolerance on nodal positions (length units);
+            ``None``: no error control.
+        reject_inversion: A converged state with :math:`J \\le 0` at a quadrature point is a failure.
+        max_steps: Hard limit on attempts (accepted and rejected).
+    """
+
+    end: float = 1.0
+    increment: float = 1.0
+    min_increment: float | None = None
+    max_increment: float | None = None
+    cutback: float = 0.5
+    growth: float = 2.0
+    grow_after: int = 1
+    easy_iterations: int | None = 6
+    must_hit: Sequence[float] = ()
+    landing: str = "clip"
+    tolerance: float | None = None
+    reject_inversion: bool = True
+    max_steps: int = 10000
+
+    def __post_init__(self) -> None:
+        where = "StepPolicy"
+        _check_finite(where, "end", self.end)
+        check_positive("increment", self.increment, where)
+        for name in ("min_increment", "max_increment", "tolerance"):
+            if getattr(self, name) is not None:
+                check_positive(name, getattr(self, name), where)
+        if not self.min_step <= self.increment <= self.max_step:
+            raise ParameterError(
+                f"{where}: need min_increment <= increment <= max_increment, got "
+                f"{self.min_step}, {self.increment}, {self.max_step}"
+            )
+        if not (is_finite_number(self.cutback) and 0 < self.cutback < 1):
+            raise ParameterError(f"{where}: cutback must lie in (0, 1), got {self.cutback!r}")
+        if not (is_finite_number(self.growth) and self.growth >= 1):
+            raise ParameterError(f"{where}: growth must be a finite number >= 1, got {self.growth!r}")
+        _check_count(where, "grow_after", self.grow_after)
+        _check_count(where, "max_steps", self.max_steps)
+        if self.easy_iterations is not None:
+            _check_count(where, "easy_iterations", self.easy_iterations)
+        bad = [t for t in self.must_hit if not is_finite_number(t)]
+        if bad:
+            raise ParameterError(f"{where}: must_hit times must be finite numbers, got {bad[0]!r}")
+        object.__setattr__(self, "must_hit", tuple(float(t) for t in self.must_hit))
+        if self.landing not in LANDINGS:
+            raise ParameterError(f"{where}: landing must be one of {LANDINGS}, got {self.landing!r}")
+
+    @property
+    def min_step(self) -> float:
+        """Effective ``min_increment``."""
+        return self.min_increment if self.min_increment is not None else self.increment / 2**10
+
+    @property
+    def max_step(self) -> float:
+        """Effective ``max_increment``."""
+        if self.max_increment is not None:
+            return self.max_increment
+        return 16 * self.increment if self.tolerance is not None else self.increment
 
 
 @dataclass(frozen=True)
 class LoadStepping:
-    """Parameters of the load-stepping loop.
+    """Preset of :class:`StepPolicy` for a quasi-static ramp (:func:`solve_quasistatic`).
 
     Attributes:
-        initial_increment: First increment of the load factor.
+        initial_increment: First increment of the load factor (time of the ramp).
         min_increment: Smallest increment before giving up.
         max_increment: Largest increment.
         growth: Factor applied to the increment after an easy step.
@@ -46,9 +187,7 @@ class LoadStepping:
         for name in ("initial_increment", "min_increment", "max_increment", "growth"):
             check_positive(name, getattr(self, name), "LoadStepping")
         for name in ("easy_iterations", "max_steps"):
-            value = getattr(self, name)
-            if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
-                raise ParameterError(f"LoadStepping: {name} must be an integer >= 1, got {value!r}")
+            _check_count("LoadStepping", name, getattr(self, name))
         if not 0 < self.min_increment <= self.initial_increment <= self.max_increment:
             raise ParameterError(
                 "LoadStepping: need 0 < min_increment <= initial_increment <= max_increment, got "
@@ -57,47 +196,518 @@ class LoadStepping:
         if self.growth < 1:
             raise ParameterError(f"LoadStepping: growth must be >= 1, got {self.growth}")
 
+    def policy(self, end: float = 1.0) -> StepPolicy:
+        """The policy to reach ``end``: growth after every easy step, the last step clipped."""
+        return StepPolicy(
+            end=end,
+            increment=self.initial_increment,
+            min_increment=self.min_increment,
+            max_increment=self.max_increment,
+            growth=self.growth,
+            grow_after=1,
+            easy_iterations=self.easy_iterations,
+            landing="clip",
+            reject_inversion=False,  # the solver's pre-check already refuses J <= min_jacobian
+            max_steps=self.max_steps,
+        )
 
-@dataclass
-class StepRecord:
-    """A converged load step.
+
+@dataclass(frozen=True)
+class TimeStepping:
+    """Preset of :class:`StepPolicy` for a time integration (:func:`integrate`).
 
     Attributes:
-        load_factor: Load factor reached.
-        increment: Increment used for this step.
-        cutbacks: Failed attempts before this step converged.
-        solve: The converged :class:`SolveRecord`.
-        failed: Records of the failed attempts.
+        dt: Initial (nominal) step.
+        t_end: Final time.
+        dt_min: Smallest step before giving up (default ``dt / 2**10``).
+        dt_max: Largest step (default ``dt`` when not adaptive, ``16 dt`` when adaptive).
+        adaptive: Step-doubling error control.
+        tolerance: Allowed nodal position difference (length units) in adaptive mode.
+        grow_after: Accepted steps without reduction before trying :math:`2\\Delta t`.
+        must_hit: Times that steps must land on (in equal steps).
+        reject_inversion: Treat a state with :math:`J \\le 0` at a quadrature point as a failure.
+        max_steps: Hard limit on attempted steps.
     """
 
-    load_factor: float
-    increment: float
-    cutbacks: int
-    solve: SolveRecord
-    failed: list[SolveRecord] = field(default_factory=list)
+    dt: float
+    t_end: float
+    dt_min: float | None = None
+    dt_max: float | None = None
+    adaptive: bool = False
+    tolerance: float = 1e-4
+    grow_after: int = 4
+    must_hit: Sequence[float] = ()
+    reject_inversion: bool = True
+    max_steps: int = 1_000_000
+
+    def __post_init__(self) -> None:
+        where = "TimeStepping"
+        for name in (
+            ("dt", "t_end", "tolerance")
+            + (("dt_min",) if self.dt_min is not None else ())
+            + (("dt_max",) if self.dt_max is not None else ())
+        ):
+            _check_finite(where, name, getattr(self, name))
+        if not self.dt > 0:
+            raise ParameterError(f"{where}: dt must be > 0, got {self.dt!r}")
+        if not (self.dt_min is None or 0 < self.dt_min <= self.dt):
+            raise ParameterError(f"{where}: need 0 < dt_min <= dt, got dt_min={self.dt_min!r}")
+        if not (self.dt_max is None or self.dt_max >= self.dt):
+            raise ParameterError(f"{where}: need dt_max >= dt, got dt_max={self.dt_max!r}")
+        if not self.tolerance > 0:
+            raise ParameterError(f"{where}: tolerance must be > 0, got {self.tolerance!r}")
+        for name in ("grow_after", "max_steps"):
+            _check_count(where, name, getattr(self, name))
+        bad = [t for t in self.must_hit if not is_finite_number(t)]
+        if bad:
+            raise ParameterError(f"{where}: must_hit times must be finite numbers, got {bad[0]!r}")
+
+    @property
+    def min_step(self) -> float:
+        """Effective ``dt_min``."""
+        return self.dt_min if self.dt_min is not None else self.dt / 2**10
+
+    @property
+    def max_step(self) -> float:
+        """Effective ``dt_max``."""
+        if self.dt_max is not None:
+            return self.dt_max
+        return 16 * self.dt if self.adaptive else self.dt
+
+    def policy(self) -> StepPolicy:
+        """The policy: equal steps to the must-hit times, doubling after ``grow_after`` steps."""
+        return StepPolicy(
+            end=self.t_end,
+            increment=self.dt,
+            min_increment=self.min_step,
+            max_increment=self.max_step,
+            growth=2.0,
+            grow_after=self.grow_after,
+            easy_iterations=None,
+            must_hit=self.must_hit,
+            landing="equal",
+            tolerance=self.tolerance if self.adaptive else None,
+            reject_inversion=self.reject_inversion,
+            max_steps=self.max_steps,
+        )
+
+
+# -- records ------------------------------------------------------------------------------
+@dataclass
+class StepRecord:
+    """An accepted step.
+
+    Attributes:
+        step: Index of the accepted step (1, 2, ...).
+        time: Time reached.
+        dt: Increment of this step (negative when ramping down).
+        solve_records: The solves that produced the accepted state (two half
+            steps with step doubling).
+        failed: The solves of the rejected attempts.
+        solves: All solves spent on this step (rejected attempts and the
+            coarse step of the error estimate included).
+        rejected: Rejected attempts (failures and error-control reductions).
+        error: Step-doubling estimate (``nan`` without error control).
+        wall_time: Seconds spent on this step.
+    """
+
+    step: int
+    time: float
+    dt: float
+    solve_records: list[SolveRecord] = field(default_factory=list, repr=False)
+    failed: list[SolveRecord] = field(default_factory=list, repr=False)
+    solves: int = 1
+    rejected: int = 0
+    error: float = float("nan")
+    wall_time: float = 0.0
+
+    @property
+    def solve(self) -> SolveRecord:
+        """The last accepted solve."""
+        return self.solve_records[-1]
+
+    @property
+    def iterations(self) -> int:
+        """Newton iterations of the accepted solves."""
+        return sum(r.iterations for r in self.solve_records)
+
+    @property
+    def min_J(self) -> float:
+        """Smallest quadrature-point :math:`J` of the accepted state."""
+        return self.solve.min_J
+
+    @property
+    def increment(self) -> float:
+        """Alias of :attr:`dt`."""
+        return self.dt
+
+    @property
+    def cutbacks(self) -> int:
+        """Alias of :attr:`rejected`."""
+        return self.rejected
+
+    @property
+    def load_factor(self) -> float:
+        """Deprecated alias of :attr:`time`."""
+        return self.time
 
     def as_dict(self) -> dict:
-        """JSON-serialisable form."""
+        """JSON-serialisable summary (without the solve records)."""
         return {
-            "load_factor": self.load_factor,
-            "increment": self.increment,
-            "cutbacks": self.cutbacks,
-            "solve": self.solve.as_dict(),
-            "failed": [f.as_dict() for f in self.failed],
+            "step": self.step,
+            "time": self.time,
+            "dt": self.dt,
+            "iterations": self.iterations,
+            "solves": self.solves,
+            "rejected": self.rejected,
+            "error": self.error,
+            "min_J": self.min_J,
+            "reason": self.solve.reason_name,
+            "wall_time": self.wall_time,
         }
 
 
+TimeStepRecord = StepRecord
+"""The record of an accepted time step (one record type for every run)."""
+
+
+# -- stages -------------------------------------------------------------------------------
+@runtime_checkable
+class Stage(Protocol):
+    """What :func:`run_steps` steps: the stage owns its state (unknowns, rates, time).
+
+    :func:`run_steps` calls :meth:`save` at the start of each step,
+    :meth:`advance` for an attempt, :meth:`commit` when the attempt passes and
+    :meth:`restore` when it fails (or to take the two half steps of an error
+    estimate from the same state).
+
+    Attributes:
+        kind: ``"quasi-static"`` or ``"dynamic"`` (for summaries).
+    """
+
+    kind: str
+
+    @property
+    def time(self) -> float:
+        """Time of the accepted state."""
+
+    def save(self) -> object:
+        """Snapshot of the accepted state."""
+
+    def restore(self, state: object) -> None:
+        """Return to a snapshot (loads and boundary values included)."""
+
+    def advance(self, t: float, dt: float) -> SolveRecord:
+        """Solve for the state at ``t + dt`` from the accepted state at ``t`` (not yet accepted)."""
+
+    def commit(self) -> None:
+        """Accept the state of the last :meth:`advance`."""
+
+    def distance(self, state: object) -> float:
+        """Largest nodal displacement difference between the current state and a snapshot."""
+
+
+def _displacement_dofs(problem) -> np.ndarray | None:
+    """Owned displacement entries of ``problem.u``'s array; ``None`` when all of ``u`` is displacement."""
+    space = problem.displacement_space()
+    if not space.component():
+        return None
+    collapsed, dofs = space.collapse()
+    n = collapsed.dofmap.index_map.size_local * collapsed.dofmap.index_map_bs
+    return np.asarray(dofs, dtype=np.int32).reshape(-1)[:n]
+
+
+def _max_nodal_distance(problem, dofs: np.ndarray | None, a: np.ndarray, b: np.ndarray) -> float:
+    if dofs is None:
+        imap = problem.u.function_space.dofmap.index_map
+        bs = problem.u.function_space.dofmap.index_map_bs
+        n = imap.size_local * bs
+        d = (a[:n] - b[:n]).reshape(-1, bs)
+    else:
+        d = (a[dofs] - b[dofs]).reshape(-1, problem.domain.gdim)
+    local = float(np.sqrt((d**2).sum(axis=1)).max()) if d.size else 0.0
+    return problem.domain.comm.allreduce(local, op=MPI.MAX)
+
+
+@dataclass
+class _Snapshot:
+    time: float
+    u: np.ndarray
+    inner: object = None
+
+
+class QuasiStaticStage:
+    """A quasi-static ramp: :meth:`advance` moves the loads to ``t + dt`` and solves.
+
+    Args:
+        problem: A :class:`~hyperfem.problem.protocol.SolidProblem`; its time is the start.
+        solver: The Newton solver built on it.
+    """
+
+    kind = "quasi-static"
+
+    def __init__(self, problem, solver: NewtonSolver):
+        self.problem = problem
+        self.solver = solver
+        self._time = float(problem.time)
+        self._trial = self._time
+        self._dofs = _displacement_dofs(problem)
+
+    @property
+    def time(self) -> float:
+        """Time of the accepted state."""
+        return self._time
+
+    def save(self) -> _Snapshot:
+        """Copy of the unknown and the time."""
+        return _Snapshot(self._time, self.problem.u.x.array.copy())
+
+    def restore(self, state: _Snapshot) -> None:
+        """Back to ``state``: unknown, loads and boundary values."""
+        self.problem.u.x.array[:] = state.u
+        self.problem.set_time(state.time)
+        self._time = self._trial = state.time
+
+    def advance(self, t: float, dt: float) -> SolveRecord:
+        """Loads at ``t + dt``, Newton from the current state."""
+        self._trial = t + dt
+        self.problem.set_time(self._trial)
+        return self.solver.solve()
+
+    def commit(self) -> None:
+        """The solved state becomes the accepted one."""
+        self._time = self._trial
+
+    def distance(self, state: _Snapshot) -> float:
+        """Largest nodal displacement difference from ``state``."""
+        return _max_nodal_distance(self.problem, self._dofs, self.problem.u.x.array, state.u)
+
+
+class DynamicStage:
+    """Time steps of an :class:`~hyperfem.dynamics.IncrementalProblem` (any integrator).
+
+    :meth:`advance` is ``prepare(dt)`` (loads, boundary values, predictor) and a
+    solve; :meth:`commit` updates velocity, acceleration and time.
+
+    Args:
+        problem: The incremental problem; its accepted state is the start.
+        solver: The Newton solver built on it.
+    """
+
+    kind = "dynamic"
+
+    def __init__(self, problem, solver: NewtonSolver):
+        self.problem = problem
+        self.solver = solver
+        self._time = float(problem.save().t)  # the accepted time t_n
+        self._pending = None
+        self._dofs = _displacement_dofs(problem)
+
+    @property
+    def time(self) -> float:
+        """Time of the accepted state."""
+        return self._time
+
+    def save(self) -> _Snapshot:
+        """The incremental problem's snapshot :math:`(t, u, v, a)`."""
+        return _Snapshot(self._time, self.problem.u.x.array.copy(), self.problem.save())
+
+    def restore(self, state: _Snapshot) -> None:
+        """Back to ``state`` (loads and boundary values included)."""
+        self.problem.restore(state.inner)
+        self._time = state.time
+        self._pending = None
+
+    def advance(self, t: float, dt: float) -> SolveRecord:
+        """Prepare and solve the step from the accepted state to ``t + dt``."""
+        if not dt > 0:
+            raise ParameterError(
+                f"DynamicStage: time steps must be > 0 (time runs forward), got dt = {dt:g} at t = {t:g}"
+            )
+        inputs = self.problem.step_inputs()
+        self.problem.prepare(dt)
+        self._pending = (dt, inputs)
+        return self.solver.solve()
+
+    def commit(self) -> None:
+        """Update velocity and acceleration; the step's end becomes the accepted time."""
+        dt, inputs = self._pending
+        self.problem.commit(dt, *inputs)
+        self._time += dt
+        self._pending = None
+
+    def distance(self, state: _Snapshot) -> float:
+        """Largest nodal displacement difference from ``state``."""
+        return _max_nodal_distance(self.problem, self._dofs, self.problem.u.x.array, state.u)
+
+
+# -- the loop -----------------------------------------------------------------------------
+@dataclass
+class _Attempt:
+    ok: bool
+    accepted: list[SolveRecord]
+    records: list[SolveRecord]
+    error: float
+    reason: str
+
+
+def _acceptable(record: SolveRecord, policy: StepPolicy) -> bool:
+    return record.converged and (not policy.reject_inversion or record.min_J > 0.0)
+
+
+def _why(record: SolveRecord) -> str:
+    detail = f": {record.message}" if record.message else ""
+    return f"SNES {record.reason_name}{detail}, min J {record.min_J:.3g}"
+
+
+def _attempt(stage: Stage, policy: StepPolicy, t: float, sign: float, h: float, state) -> _Attempt:
+    """One attempt of a step of length ``h`` (and its error estimate); committed if it passes."""
+    record = stage.advance(t, sign * h)
+    records = [record]
+    ok = _acceptable(record, policy)
+    if ok:
+        stage.commit()
+    accepted, error, reason = [record], float("nan"), ""
+    if ok and policy.tolerance is not None:
+        coarse = stage.save()
+        stage.restore(state)
+        accepted = []
+        for _ in range(2):
+            record = stage.advance(stage.time, sign * (h / 2))
+            records.append(record)
+            ok = _acceptable(record, policy)
+            if not ok:
+                break
+            stage.commit()
+            accepted.append(record)
+        if ok:
+            error = stage.distance(coarse)
+            if error > policy.tolerance:
+                ok, reason = False, f"error {error:.3g} > tolerance {policy.tolerance:g}"
+    if not ok and not reason:
+        reason = _why(records[-1])
+    return _Attempt(ok, accepted, records, error, reason)
+
+
+def run_steps(
+    stage: Stage, policy: StepPolicy, on_step: Callable[[StepRecord], None] | None = None
+) -> list[StepRecord]:
+    """Step ``stage`` from its time to ``policy.end``.
+
+    Args:
+        stage: What to step (its state is the start and, after a failure, the
+            last accepted state).
+        policy: Increment control.
+        on_step: Called after every accepted step (output, diagnostics).
+
+    Returns:
+        The accepted steps.
+
+    Raises:
+        ConvergenceError: When a step falls below ``policy.min_step`` or
+            ``policy.max_steps`` attempts are spent; ``time`` is the last time
+            reached and ``history`` the accepted steps.
+    """
+    t0 = t = stage.time
+    end = float(policy.end)
+    eps = 1e-12 * max(1.0, abs(end))
+    up = not end < t0
+    sign = 1.0 if up else -1.0
+    if up:
+
+        def remaining(t: float) -> bool:
+            return t < end - eps
+
+        def beyond(hit: float, t: float) -> bool:
+            return hit > t + eps
+
+        hits = sorted({h for h in policy.must_hit if t0 + eps < h < end - eps} | {end})
+    else:
+
+        def remaining(t: float) -> bool:
+            return t > end + eps
+
+        def beyond(hit: float, t: float) -> bool:
+            return hit < t - eps
+
+        hits = sorted({h for h in policy.must_hit if end + eps < h < t0 - eps} | {end}, reverse=True)
+
+    dt = min(policy.increment, policy.max_step)
+    streak = 0
+    attempts = 0
+    history: list[StepRecord] = []
+    while remaining(t):
+        start = _time.perf_counter()
+        target = next(hit for hit in hits if beyond(hit, t))
+        span = sign * (target - t)
+        if policy.landing == "equal":
+            h = span / max(1, math.ceil(span / dt - 1e-6))
+        else:
+            h = min(dt, span)
+        state = stage.save()
+        solves, rejected = 0, 0
+        failed: list[SolveRecord] = []
+        while True:
+            attempts += 1
+            if attempts > policy.max_steps:
+                raise ConvergenceError(
+                    f"stepping exceeded {policy.max_steps} steps (rejected attempts included) at t = {t:g} "
+                    f"of {end:g}",
+                    t,
+                    history,
+                )
+            attempt = _attempt(stage, policy, t, sign, h, state)
+            solves += len(attempt.records)
+            if attempt.ok:
+                break
+            failed.extend(attempt.records)
+            stage.restore(state)
+            rejected += 1
+            streak = 0
+            h = h * policy.cutback
+            dt = h
+            if h < policy.min_step:
+                raise ConvergenceError(
+                    f"stepping failed: reached t = {t:g} of {end:g}; step {h:g} below the minimum "
+                    f"{policy.min_step:g} ({attempt.reason})",
+                    t,
+                    history,
+                )
+        easy = policy.easy_iterations is None or max(r.iterations for r in attempt.accepted) <= policy.easy_iterations
+        streak = streak + 1 if easy else 0
+        if streak >= policy.grow_after:
+            dt = min(dt * policy.growth, policy.max_step)
+            streak = 0
+        t = stage.time
+        record = StepRecord(
+            step=len(history) + 1,
+            time=t,
+            dt=sign * h,
+            solve_records=attempt.accepted,
+            failed=failed,
+            solves=solves,
+            rejected=rejected,
+            error=attempt.error,
+            wall_time=_time.perf_counter() - start,
+        )
+        history.append(record)
+        if on_step is not None:
+            on_step(record)
+    return history
+
+
+# -- the two classic entry points ---------------------------------------------------------
 def solve_quasistatic(
     solver: NewtonSolver,
     target: float = 1.0,
     stepping: LoadStepping | None = None,
     on_step: Callable[[StepRecord], None] | None = None,
 ) -> list[StepRecord]:
-    """Ramp the load factor of ``solver.problem`` to ``target``.
+    """Ramp the time (load factor) of ``solver.problem`` to ``target``, up or down.
 
     Args:
         solver: The Newton solver (its problem holds the state).
-        target: Final load factor.
+        target: Final time; below the problem's time the loads ramp down.
         stepping: Increment control (default :class:`LoadStepping`).
         on_step: Called after every converged step (e.g. to write output).
 
@@ -106,47 +716,32 @@ def solve_quasistatic(
 
     Raises:
         ConvergenceError: When the increment falls below ``min_increment``;
-            ``load_factor`` and ``history`` tell how far it got.
+            ``time`` and ``history`` tell how far it got.
     """
     stepping = LoadStepping() if stepping is None else stepping
-    problem = solver.problem
-    u = problem.u
-    s = problem.load_factor
-    inc = min(stepping.initial_increment, stepping.max_increment)
-    history: list[StepRecord] = []
-    failed: list[SolveRecord] = []
-    saved = u.x.array.copy()
-    attempts = 0
-    while s < target - 1e-12 * max(1.0, abs(target)):
-        attempts += 1
-        if attempts > stepping.max_steps:
-            raise ConvergenceError(
-                f"load stepping exceeded {stepping.max_steps} steps at load factor {s:g}", s, history
-            )
-        step = min(inc, target - s)
-        problem.set_load_factor(s + step)
-        record = solver.solve()
-        if record.converged:
-            s += step
-            saved[:] = u.x.array
-            entry = StepRecord(s, step, len(failed), record, failed)
-            history.append(entry)
-            failed = []
-            if on_step is not None:
-                on_step(entry)
-            if record.iterations <= stepping.easy_iterations:
-                inc = min(inc * stepping.growth, stepping.max_increment)
-            continue
-        failed.append(record)
-        u.x.array[:] = saved
-        problem.set_load_factor(s)
-        inc = step / 2
-        if inc < stepping.min_increment:
-            raise ConvergenceError(
-                f"load stepping failed: reached load factor {s:g} of {target:g}; "
-                f"increment {inc:g} below minimum {stepping.min_increment:g} "
-                f"(last SNES reason {record.reason_name})",
-                s,
-                history,
-            )
-    return history
+    return run_steps(QuasiStaticStage(solver.problem, solver), stepping.policy(target), on_step)
+
+
+def integrate(
+    problem,
+    solver: NewtonSolver,
+    stepping: TimeStepping,
+    on_step: Callable[[StepRecord], None] | None = None,
+) -> list[StepRecord]:
+    """Advance ``problem`` (an :class:`~hyperfem.dynamics.IncrementalProblem`) to ``stepping.t_end``.
+
+    Args:
+        problem: The incremental problem; its state is the start.
+        solver: A :class:`~hyperfem.solver.NewtonSolver` built on ``problem``.
+        stepping: Step control.
+        on_step: Called after every accepted step (diagnostics, output).
+
+    Returns:
+        The accepted steps.
+
+    Raises:
+        ConvergenceError: When the step falls below ``dt_min``; ``time`` holds
+            the last time reached and ``history`` the accepted steps.
+        ParameterError: If ``t_end`` lies before the problem's time.
+    """
+    return run_steps(DynamicStage(problem, solver), stepping.policy(), on_step)

@@ -1,0 +1,263 @@
+r"""Mechanical measures of a run, as outputs of a :class:`~hyperfem.simulation.Simulation`.
+
+Each adds columns to the row of every recorded state and its last value to
+the summary:
+
+* :class:`Probe` — displacement at reference points;
+* :class:`Reaction` — force on the body at a named boundary
+  (:class:`~hyperfem.problem.ReactionForce`);
+* :class:`BoundaryAverage` — mean of a displacement component over a boundary,
+  :math:`\int_\Gamma u_i\,dA / |\Gamma|`;
+* :class:`RadialBulge` — largest radial displacement away from an axis,
+  :math:`\max_X \big(|(X + u)_\perp| - |X_\perp|\big)` over the displacement nodes.
+
+:class:`CellFields` writes cell-wise fields (fibre stretch, activation,
+:func:`cauchy_stress`, ...) as a VTX time series. All of them work on the
+displacement and the three-field problem (through
+:class:`~hyperfem.simulation.Fields`) and, for a dynamic run, on its base problem.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from hyperfem.errors import ParameterError
+from hyperfem.io.probes import PointProbe
+from hyperfem.kinematics import deformation_gradient
+from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, SplitEnergy
+from hyperfem.simulation.outputs import VTX, Output
+from hyperfem.solver.stepping import StepRecord
+
+__all__ = ["BoundaryAverage", "CellFields", "Probe", "RadialBulge", "Reaction", "cauchy_stress"]
+
+Expr = ufl.core.expr.Expr
+
+
+class _Column(Output):
+    """A measure with one column whose last value also goes to the summary."""
+
+    name: str
+
+    def summary(self, sim, summary: dict) -> dict:
+        return {self.name: sim.rows[-1][self.name]} if sim.rows else {}
+
+
+class Probe(_Column):
+    """Displacement at reference points, shape ``(points, components)``.
+
+    Args:
+        points: Reference coordinates.
+        name: Column name (the summary adds ``probe_points``).
+    """
+
+    def __init__(self, points: Sequence[Sequence[float]], name: str = "probe_displacement"):
+        self.points = [[float(c) for c in p] for p in points]
+        self.name = name
+        self._probe: PointProbe | None = None
+
+    def start(self, sim) -> None:
+        """Locate the points (collective)."""
+        self._probe = PointProbe(sim.fields.base.domain.mesh, self.points)
+
+    def measure(self, sim, step: StepRecord | None) -> dict:
+        """The displacement at the points (the same on every rank)."""
+        return {self.name: self._probe(sim.fields.displacement).tolist()}
+
+    def summary(self, sim, summary: dict) -> dict:
+        """The points and their last displacement."""
+        return {"probe_points": self.points, **super().summary(sim, summary)}
+
+
+class Reaction(_Column):
+    """Force the support exerts on the body at a named (Dirichlet) boundary.
+
+    From the residual of the stored energy (:class:`~hyperfem.problem.ReactionForce`);
+    for a dynamic run that of the base problem: the elastic force, without inertia.
+
+    Args:
+        boundary: Boundary name.
+        name: Column name (default ``reaction_<boundary>``).
+    """
+
+    def __init__(self, boundary: str, name: str | None = None):
+        self.boundary = boundary
+        self.name = name or f"reaction_{boundary}"
+        self._force: ReactionForce | None = None
+
+    def start(self, sim) -> None:
+        """Compile the form."""
+        self._force = ReactionForce(sim.fields.base, self.boundary)
+
+    def measure(self, sim, step: StepRecord | None) -> dict:
+        """The force vector."""
+        return {self.name: self._force().tolist()}
+
+
+class BoundaryAverage(_Column):
+    r"""Mean displacement component over a named boundary, :math:`\int_\Gamma u_i\,dA / |\Gamma|`.
+
+    Args:
+        boundary: Boundary name.
+        component: Displacement component ``i``.
+        name: Column name (default ``u<i>_<boundary>``).
+
+    Attributes:
+        area: :math:`|\Gamma|` in the reference configuration (after :meth:`start`).
+    """
+
+    def __init__(self, boundary: str, component: int, name: str | None = None):
+        self.boundary = boundary
+        self.component = component
+        self.name = name or f"u{component}_{boundary}"
+        self.area = float("nan")
+
+    def start(self, sim) -> None:
+        """Compile the form and measure the boundary."""
+        domain = sim.fields.base.domain
+        if not 0 <= self.component < domain.gdim:
+            raise ParameterError(f"BoundaryAverage: component must lie in [0, {domain.gdim}), got {self.component!r}")
+        ds = domain.ds(self.boundary)
+        self._comm = domain.comm
+        self.area = domain.comm.allreduce(fem.assemble_scalar(fem.form(1.0 * ds)))
+        self._form = fem.form(sim.fields.displacement[self.component] * ds)
+
+    def measure(self, sim, step: StepRecord | None) -> dict:
+        """The mean."""
+        return {self.name: self._comm.allreduce(fem.assemble_scalar(self._form)) / self.area}
+
+
+class RadialBulge(_Column):
+    r"""Largest radial displacement away from an axis, :math:`\max_X\big(|(X + u)_\perp| - |X_\perp|\big)`.
+
+    :math:`Y_\perp = (Y - c) - ((Y - c)\cdot a)\,a` is the part of :math:`Y - c`
+    normal to the axis through ``origin`` :math:`c` along ``axis`` :math:`a`; the
+    maximum runs over the displacement nodes.
+
+    Args:
+        axis: Direction of the axis.
+        origin: A point of the axis.
+        name: Column name.
+    """
+
+    def __init__(
+        self,
+        axis: Sequence[float] = (0.0, 0.0, 1.0),
+        origin: Sequence[float] = (0.0, 0.0, 0.0),
+        name: str = "max_radial_bulge",
+    ):
+        a = np.asarray(axis, dtype=float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
+            raise ParameterError(f"RadialBulge: axis must be a finite non-zero 3-vector, got {axis!r}")
+        self.axis = a / np.linalg.norm(a)
+        self.origin = np.asarray(origin, dtype=float)
+        self.name = name
+
+    def _perp(self, Y: np.ndarray) -> np.ndarray:
+        d = Y - self.origin
+        return d - np.outer(d @ self.axis, self.axis)
+
+    def start(self, sim) -> None:
+        """Tabulate the node coordinates."""
+        space = sim.fields.displacement.function_space
+        self._X = space.tabulate_dof_coordinates()
+        self._gdim = space.dofmap.index_map_bs
+        self._r0 = np.sqrt((self._perp(self._X) ** 2).sum(axis=1))
+        self._comm = space.mesh.comm
+
+    def measure(self, sim, step: StepRecord | None) -> dict:
+        """The bulge (``-inf`` on a rank without nodes before the reduction)."""
+        u = np.zeros_like(self._X)
+        u[:, : self._gdim] = sim.fields.displacement.x.array.reshape(-1, self._gdim)
+        r = np.sqrt((self._perp(self._X + u) ** 2).sum(axis=1))
+        local = float((r - self._r0).max()) if r.size else -np.inf
+        return {self.name: self._comm.allreduce(local, op=MPI.MAX)}
+
+
+def cauchy_stress(problem, materials: Mapping[str | None, SplitEnergy | Callable[[Expr], Expr]]) -> dict:
+    r"""Cauchy stress :math:`\sigma = J^{-1} P F^T`, :math:`P = \partial W/\partial F`, per region.
+
+    For the three-field problem :math:`W = \psi_\text{iso}(F) + U(\theta) + p\,(\det F - \theta)`
+    at the problem's :math:`p, \theta` (the stress of the mixed solution);
+    for the displacement problem :math:`W = \psi(F)`.
+
+    Args:
+        problem: The displacement or three-field problem.
+        materials: Region name (``None``: everywhere) → :class:`~hyperfem.problem.SplitEnergy`
+            or energy ``psi(F)``.
+
+    Returns:
+        Region → UFL tensor, for :class:`CellFields`.
+    """
+    F = ufl.variable(deformation_gradient(problem.displacement()))
+    mixed = isinstance(problem, MixedHyperelasticProblem)
+    out = {}
+    for region, material in materials.items():
+        if mixed:
+            if not isinstance(material, SplitEnergy):
+                raise ParameterError(f"cauchy_stress: the three-field problem needs SplitEnergy materials ({region!r})")
+            W = material.mixed_energy(F, problem.p, problem.theta)
+        else:
+            W = material.energy(F) if isinstance(material, SplitEnergy) else material(F)
+        out[region] = ufl.diff(W, F) * F.T / ufl.det(F)
+    return out
+
+
+class CellFields(VTX):
+    """Cell-wise (DG0, at cell midpoints) fields as a VTX time series.
+
+    Args:
+        path: The ``.bp`` folder.
+        fields: Name → UFL expression (or number), or name → {region → expression}
+            (cells outside the listed regions are zero).
+        times: As for :class:`~hyperfem.simulation.outputs.VTX`.
+        role: Key in ``sim.files`` (default: the file name).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        fields: Mapping[str, Expr | float | Mapping[str | None, Expr | float]],
+        *,
+        times: Sequence[float] | None = None,
+        role: str | None = None,
+    ):
+        super().__init__(path, None, times=times, role=role or Path(path).name)
+        self.fields = dict(fields)
+        self._parts: list[tuple[fem.Function, list]] = []
+
+    def start(self, sim) -> None:
+        """Compile the expressions and open the file."""
+        domain = sim.fields.base.domain
+        mesh = domain.mesh
+        self._parts, functions = [], []
+        for name, spec in self.fields.items():
+            parts = dict(spec) if isinstance(spec, Mapping) else {None: spec}
+            parts = {r: fem.Constant(mesh, float(e)) if isinstance(e, numbers.Real) else e for r, e in parts.items()}
+            shape = next(iter(parts.values())).ufl_shape
+            V = fem.functionspace(mesh, ("DG", 0, shape) if shape else ("DG", 0))
+            f = fem.Function(V, name=name)
+            points = V.element.interpolation_points
+            compiled = [
+                (None if region is None else domain.cells(region), fem.Expression(e, points))
+                for region, e in parts.items()
+            ]
+            self._parts.append((f, compiled))
+            functions.append(f)
+        self.functions = functions
+        super().start(sim)
+
+    def _refresh(self) -> None:
+        for f, compiled in self._parts:
+            for cells, expr in compiled:
+                if cells is None:
+                    f.interpolate(expr)
+                else:
+                    f.interpolate(expr, cells0=cells)
+            f.x.scatter_forward()

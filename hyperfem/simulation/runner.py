@@ -1,0 +1,262 @@
+"""A run: a problem, its solver, a step policy and the outputs that observe every accepted step.
+
+:class:`Simulation` is the same for statics and dynamics: it wraps the
+problem in a :class:`~hyperfem.solver.stepping.QuasiStaticStage`, or in a
+:class:`~hyperfem.solver.stepping.DynamicStage` when the problem is a time
+step (:class:`~hyperfem.dynamics.IncrementalProblem`), and steps it with
+:func:`~hyperfem.solver.stepping.run_steps`. After the initial state and
+after every accepted step it
+
+1. refreshes :class:`Fields` (the displacement, pressure and velocity as
+   plain functions, for the three-field problem too),
+2. builds one *row*: step, time, increment, Newton iterations, rejected
+   attempts, min J, the solver's consistency indicators, and the columns
+   the outputs measure (:meth:`~hyperfem.simulation.outputs.Output.measure`),
+3. lets the outputs write (:meth:`~hyperfem.simulation.outputs.Output.write`):
+   VTX frames, the CSV line, the JSON summary.
+
+So every accepted step is on disk before the next one starts. When a step
+fails after all cutbacks the outputs are closed, the summary says
+``"completed": false`` and the :class:`~hyperfem.errors.ConvergenceError`
+is raised again, naming where the completed steps are.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Sequence
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from hyperfem.errors import ConvergenceError
+from hyperfem.solver.newton import NewtonSolver, SolveRecord
+from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
+
+__all__ = ["Fields", "Simulation"]
+
+
+def _is_time_step(problem) -> bool:
+    return all(callable(getattr(problem, name, None)) for name in ("prepare", "commit", "step_inputs"))
+
+
+class Fields:
+    """The state of a problem as plain functions for output and measurement.
+
+    For the displacement problem :attr:`displacement` is the unknown itself;
+    for the three-field problem the collapsed displacement and pressure of
+    ``update_fields()``. A time step (``problem.base`` and ``problem.v``) adds
+    the velocity, collapsed the same way.
+
+    Args:
+        problem: A problem, or an incremental problem wrapping one.
+
+    Attributes:
+        base: The problem of the body (``problem.base`` for a time step).
+        displacement: Displacement function.
+        pressure: Pressure function of the three-field problem, else ``None``.
+        velocity: Velocity of a time step, else ``None``.
+    """
+
+    def __init__(self, problem):
+        self.base = getattr(problem, "base", problem)
+        self._mixed = callable(getattr(self.base, "update_fields", None))
+        if self._mixed:
+            self.displacement, self.pressure = self.base.update_fields()
+        else:
+            self.displacement, self.pressure = self.base.u, None
+        self._v = getattr(problem, "v", None)
+        self._v_dofs = None
+        self.velocity = self._v
+        space = self.base.displacement_space()
+        if self._v is not None and space.component():  # the velocity has the state's blocks
+            collapsed, dofs = space.collapse()
+            self._v_dofs = np.asarray(dofs, dtype=np.int32).reshape(-1)
+            self.velocity = fem.Function(collapsed, name="velocity")
+
+    def refresh(self) -> None:
+        """Copy the current state into the functions (nothing to do for the displacement problem)."""
+        if self._mixed:
+            self.base.update_fields()
+        if self._v_dofs is not None:
+            self.velocity.x.array[:] = self._v.x.array[self._v_dofs]
+
+    def output(self) -> list[fem.Function]:
+        """What a VTX file shows by default: displacement, pressure, velocity (those that exist)."""
+        return [f for f in (self.displacement, self.pressure, self.velocity) if f is not None]
+
+
+class Simulation:
+    """One run of a problem, observed by outputs after every accepted step.
+
+    Args:
+        problem: A :class:`~hyperfem.problem.protocol.SolidProblem`, or an
+            :class:`~hyperfem.dynamics.IncrementalProblem` for a dynamic run.
+        solver: The :class:`~hyperfem.solver.NewtonSolver` built on ``problem``.
+        stepper: The :class:`~hyperfem.solver.stepping.StepPolicy`, or a preset
+            (:class:`~hyperfem.solver.LoadStepping` to 1,
+            :class:`~hyperfem.dynamics.TimeStepping`) turned into one.
+        outputs: Observers (:mod:`hyperfem.simulation.outputs`,
+            :mod:`hyperfem.simulation.measures`), called in this order.
+        name: Name of the run (summary, messages).
+        info: Extra summary entries (case, parameters).
+        solve_initial: Solve for equilibrium at the start time before the
+            first step (a preloaded or passive initial state); it is row 0.
+
+    Attributes:
+        rows: One dict per recorded state (row 0: the initial state).
+        steps: The accepted :class:`~hyperfem.solver.stepping.StepRecord`.
+        files: Files the outputs write, by role (``"summary"``, ``"csv"``, VTX names).
+        completed: Whether the run reached the end.
+        error: Why it stopped, or ``None``.
+    """
+
+    def __init__(
+        self,
+        problem,
+        solver: NewtonSolver,
+        stepper,
+        outputs: Sequence = (),
+        *,
+        name: str = "run",
+        info: dict | None = None,
+        solve_initial: bool = False,
+    ):
+        self.problem = problem
+        self.solver = solver
+        self.policy = stepper if isinstance(stepper, StepPolicy) else stepper.policy()
+        self.outputs = list(outputs)
+        self.name = name
+        self.info = dict(info or {})
+        self.solve_initial = solve_initial
+        self.comm = problem.domain.comm
+        self.fields = Fields(problem)
+        self.stage = None
+        self.rows: list[dict] = []
+        self.steps: list[StepRecord] = []
+        self.files: dict[str, str] = {}
+        self.completed = False
+        self.error: str | None = None
+        self._start = None
+        self._wall = 0.0
+
+    # -- state -----------------------------------------------------------------------
+    @property
+    def kind(self) -> str:
+        """``"dynamic"`` for a time step, else ``"quasi-static"``."""
+        return "dynamic" if _is_time_step(self.problem) else "quasi-static"
+
+    @property
+    def time(self) -> float:
+        """Time of the accepted state."""
+        return self.stage.time if self.stage is not None else float(self.problem.time)
+
+    @property
+    def wall_time(self) -> float:
+        """Seconds spent stepping so far, on the slowest rank (collective; forms are compiled before)."""
+        local = self._wall if self._start is None else _time.perf_counter() - self._start
+        return self.comm.allreduce(local, op=MPI.MAX)
+
+    @property
+    def dofs(self) -> int:
+        """Global number of unknowns (all fields of a mixed space, every component)."""
+        dofmap = self.problem.u.function_space.dofmap
+        return int(dofmap.index_map.size_global * dofmap.index_map_bs)
+
+    # -- running ---------------------------------------------------------------------
+    def run(self) -> dict:
+        """Record the initial state, step to the policy's end, and return the summary.
+
+        Raises:
+            ConvergenceError: A step failed after all cutbacks (the summary,
+                with ``"completed": false``, is written first).
+            OutputError: An output folder cannot be written (before any solve).
+        """
+        self.stage = (DynamicStage if self.kind == "dynamic" else QuasiStaticStage)(self.problem, self.solver)
+        started = []
+        try:
+            for output in self.outputs:
+                output.start(self)
+                started.append(output)
+            self._start = _time.perf_counter()
+            initial = self.solver.solve(raise_on_failure=True) if self.solve_initial else None
+            self._accept(None, initial)
+            run_steps(self.stage, self.policy, lambda record: self._accept(record, None))
+            self.completed = True
+        except ConvergenceError as exc:
+            self.error = str(exc)
+            where = f" (completed steps written to {self.files['summary']})" if "summary" in self.files else ""
+            raise ConvergenceError(f"{self.name}: {exc}{where}", exc.time, exc.history) from exc
+        except Exception as exc:
+            self.error = f"{type(exc).__name__}: {exc}"
+            raise
+        finally:
+            if self._start is not None:
+                self._wall, self._start = _time.perf_counter() - self._start, None
+            for output in started:
+                output.close(self)
+        return self.summary()
+
+    def _accept(self, record: StepRecord | None, initial: SolveRecord | None) -> None:
+        if record is not None:
+            self.steps.append(record)
+        self.fields.refresh()
+        solve = record.solve if record is not None else initial
+        row = {
+            "step": 0 if record is None else record.step,
+            "time": self.time,
+            "dt": 0.0 if record is None else record.dt,
+            "newton_iterations": record.iterations if record is not None else (solve.iterations if solve else 0),
+            "solves": record.solves if record is not None else int(solve is not None),
+            "rejected": 0 if record is None else record.rejected,
+            "error_estimate": float("nan") if record is None else record.error,
+            "min_J": solve.min_J if solve is not None else self.solver.min_J(),
+            "reason": solve.reason_name if solve is not None else "",
+            **(solve.indicators if solve is not None else {}),
+        }
+        for output in self.outputs:
+            row.update(output.measure(self, record))
+        self.rows.append(row)
+        for output in self.outputs:
+            output.write(self, record)
+
+    # -- summary ---------------------------------------------------------------------
+    def summary(self, rows: bool = True) -> dict:
+        """What the run did so far: size, steps, Newton iterations, outputs' entries, files.
+
+        Args:
+            rows: Include every row (``"rows"``).
+        """
+        base = self.fields.base
+        its = [r.iterations for r in self.steps]
+        summary = {
+            "name": self.name,
+            "stage": self.kind,
+            "completed": self.completed,
+            "error": self.error,
+            "time": self.time,
+            "end": self.policy.end,
+            "dofs": self.dofs,
+            "cells": int(base.domain.mesh.topology.index_map(base.domain.tdim).size_global),
+            "ranks": self.comm.size,
+            "mesh": base.domain.source,
+            "degree": base.degree,
+            "petsc_options": {k: str(v) for k, v in self.solver.options.items()},
+            "energy_line_search": self.solver.energy_line_search,
+            "steps": len(self.steps),
+            "newton_iterations": its,
+            "total_newton_iterations": int(sum(its)),
+            "rejected": int(sum(r.rejected for r in self.steps)),
+            "solves": int(sum(r.solves for r in self.steps)),
+            "wall_time": self.wall_time,
+            "files": dict(self.files),
+            **self.info,
+        }
+        if self.kind == "quasi-static":
+            summary["load_steps"] = summary["steps"]  # the older name of the count, kept for readers of old summaries
+        for output in self.outputs:
+            summary.update(output.summary(self, summary))
+        if rows:
+            summary["rows"] = list(self.rows)
+        return summary
