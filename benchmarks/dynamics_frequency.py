@@ -23,7 +23,7 @@ from dolfinx import mesh as dmesh  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
-from hyperfem.dynamics.beam_theory import euler_bernoulli_cantilever, timoshenko_cantilever  # noqa: E402
+from hyperfem.cases.beam_theory import euler_bernoulli_cantilever, timoshenko_cantilever  # noqa: E402
 
 E, NU, RHO = 1e6, 0.3, 1000.0
 

@@ -60,19 +60,28 @@ from pathlib import Path  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402
 
-import numpy as np  # noqa: E402
-import ufl  # noqa: E402
-from dolfinx import fem, io  # noqa: E402
-
 import hyperfem as hf  # noqa: E402
 from hyperfem.activation import Activation  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
 from hyperfem.io.results import ensure_output_dir, write_json  # noqa: E402
-from hyperfem.materials.muscle import MuscleParameters, fibre_stretch, muscle_isochoric  # noqa: E402
+from hyperfem.kinematics import deformation_gradient  # noqa: E402
+from hyperfem.cases.muscle import muscle_materials  # noqa: E402
+from hyperfem.materials.muscle import fibre_stretch  # noqa: E402
 from hyperfem.mesh.fusiform import FusiformGeometry, fusiform_mesh  # noqa: E402
-from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem  # noqa: E402
+from hyperfem.problem import solid_problem  # noqa: E402
+from hyperfem.simulation import (  # noqa: E402
+    VTX,
+    BoundaryAverage,
+    CellFields,
+    JSONSummary,
+    Progress,
+    Quantity,
+    RadialBulge,
+    Reaction,
+    Simulation,
+    cauchy_stress,
+)
 
-TENDONS = ("tendon_proximal", "tendon_distal")
 
 
 def parse(argv=None) -> argparse.Namespace:
@@ -96,160 +105,73 @@ def parse(argv=None) -> argparse.Namespace:
 
 # %%
 def build_materials(domain, a0, args, activation):
-    bulk = args.bulk_factor
-    mp = MuscleParameters.muscle(K=MuscleParameters.muscle().K * bulk)
-    tp = MuscleParameters.tendon(K=MuscleParameters.tendon().K * bulk)
-    materials = {"muscle": SplitEnergy(lambda F: muscle_isochoric(F, a0, activation.expr, mp), mp.K)}
-    for name in TENDONS:
-        materials[name] = SplitEnergy(lambda F: muscle_isochoric(F, a0, 0.0, tp), tp.K)
-    return materials, {"muscle": mp, "tendon": tp}
-
-
-def make_problem(domain, materials, args, bcs, loads, activation):
-    return solid_problem(domain, materials, formulation=args.formulation, bcs=bcs, loads=loads, updaters=[activation])
+    """Belly and tendons (`hyperfem.cases.muscle`), with the seed bulk moduli times `--bulk-factor`."""
+    return muscle_materials(a0, activation, bulk_factor=args.bulk_factor)
 
 
 # %% [markdown]
-# ## Post-processing
-# The radial bulge is $\max_X\big(|x_\perp + u_\perp| - |x_\perp|\big)$ over
-# the displacement nodes; the reaction at `insertion` is the residual of the
-# stored energy tested with the unit axial field on that face,
+# ## Measures
+# After every converged step the run records the reaction at `insertion`, the
+# residual of the stored energy tested with the unit axial field on that face,
 # $R_z = \partial_u \Pi_\text{int}[e_z\chi_\text{insertion}]$ (the force the
-# support exerts on the muscle; positive = the muscle pulls on it). The
-# Cauchy stress $\sigma = J^{-1} P F^T$ is computed per region from
-# $P = \partial W/\partial F$ at fixed pressure.
+# support exerts on the muscle; positive = the muscle pulls on it); the radial
+# bulge $\max_X\big(|x_\perp + u_\perp| - |x_\perp|\big)$ over the displacement
+# nodes; and the mean axial displacement of `insertion`. Cell-wise output: the
+# fibre stretch, the activation and the Cauchy stress $\sigma = J^{-1} P F^T$
+# per region, from $P = \partial W/\partial F$ at fixed pressure. Each experiment is a
+# `Simulation` that records the passive state (row 0) and every activation step.
 
 
 # %%
-class Post:
-    def __init__(self, problem, domain, a0, materials, activation):
-        self.problem = problem
-        self.domain = domain
-        mixed = getattr(problem, "saddle_point", False)
-        self.u = problem.displacement_field if mixed else problem.u
-        self.mixed = mixed
-        mesh = domain.mesh
-        x = self.u.function_space.tabulate_dof_coordinates()
-        self.r_ref = np.hypot(x[:, 0], x[:, 1])
-        self.xy = x[:, :2]
-        self.reaction = ReactionForce(problem, "insertion")
-        ds = domain.ds("insertion")
-        self.area = mesh.comm.allreduce(fem.assemble_scalar(fem.form(1.0 * ds)))
-        self._uz = fem.form(self.u[2] * ds)
-        # Cell fields for output.
-        DG0 = fem.functionspace(mesh, ("DG", 0))
-        T0 = fem.functionspace(mesh, ("DG", 0, (3, 3)))
-        self.stretch = fem.Function(DG0, name="fibre_stretch")
-        self.alpha = fem.Function(DG0, name="activation")
-        self.sigma = fem.Function(T0, name="cauchy_stress")
-        F = ufl.variable(ufl.Identity(3) + ufl.grad(self.u))
-        J = ufl.det(F)
-        pts = DG0.element.interpolation_points
-        self._stretch_expr = fem.Expression(fibre_stretch(F, a0), pts)
-        p = self.problem.p if mixed else None
-        u_in_p = problem.F if mixed else None
-        self._region = []
-        for name, m in materials.items():
-            if mixed:
-                Fm = ufl.variable(u_in_p)
-                P = ufl.diff(m.mixed_energy(Fm, p, problem.theta), Fm)
-                sig = P * Fm.T / ufl.det(Fm)
-            else:
-                P = ufl.diff(m.energy(F), F)
-                sig = P * F.T / J
-            a = activation.expr if name == "muscle" else fem.Constant(mesh, 0.0)
-            self._region.append(
-                (domain.cells(name), fem.Expression(sig, T0.element.interpolation_points), fem.Expression(a, pts))
-            )
-
-    def refresh(self):
-        if self.mixed:
-            self.problem.update_fields()
-
-    def bulge(self) -> float:
-        xy = self.xy + self.u.x.array.reshape(-1, 3)[:, :2]
-        local = float((np.hypot(xy[:, 0], xy[:, 1]) - self.r_ref).max()) if xy.size else -np.inf
-        return self.domain.comm.allreduce(local, op=MPI.MAX)
-
-    def insertion_uz(self) -> float:
-        return self.domain.comm.allreduce(fem.assemble_scalar(self._uz)) / self.area
-
-    def cell_fields(self):
-        self.stretch.interpolate(self._stretch_expr)
-        for cells, sig, a in self._region:
-            self.sigma.interpolate(sig, cells0=cells)
-            self.alpha.interpolate(a, cells0=cells)
-        for f in (self.stretch, self.alpha, self.sigma):
-            f.x.scatter_forward()
-        return self.stretch, self.alpha, self.sigma
-
-
-# %% [markdown]
-# ## Experiments
-
-
-# %%
-def run_experiment(kind, domain, a0, a0_out, args, comm):
+def run_experiment(kind, domain, a0, a0_out, args):
     activation = Activation(domain.mesh, value=lambda s: min(max(s, 0.0), 1.0), name="muscle activation")
-    materials, params = build_materials(domain, a0, args, activation)
+    materials = build_materials(domain, a0, args, activation)
     if kind == "isometric":
         bcs, loads = [hf.Clamp("origin"), hf.Clamp("insertion")], []
     else:
         bcs = [hf.Clamp("origin")]
         loads = [hf.DeadTraction("insertion", (0.0, 0.0, args.traction), profile=lambda s: 1.0)]
-    problem = make_problem(domain, materials, args, bcs, loads, activation)
+    problem = solid_problem(
+        domain, materials, formulation=args.formulation, bcs=bcs, loads=loads, updaters=[activation]
+    )
     solver = hf.NewtonSolver(problem, petsc_options={"snes_linesearch_type": "bt"})
-    # Output is evaluated at cell midpoints: quadrature-point fibres cannot be, so
-    # post-processing then uses the same Laplace fibres in DG0.
-    out_materials = materials if a0_out is a0 else build_materials(domain, a0_out, args, activation)[0]
-    post = Post(problem, domain, a0_out, out_materials, activation)
-    out = args.output
-    writers = None
-    if out is not None:
-        writers = (
-            io.VTXWriter(comm, str(out / f"muscle_{kind}_u.bp"), [post.u], engine="BP4"),
-            io.VTXWriter(comm, str(out / f"muscle_{kind}_cells.bp"), list(post.cell_fields()), engine="BP4"),
-        )
-    rows = []
-
-    def record(s, iterations):
-        post.refresh()
-        row = {
-            "activation": activation.value,
-            "newton_iterations": iterations,
-            "reaction_insertion": post.reaction().tolist(),
-            "max_radial_bulge": post.bulge(),
-            "insertion_uz": post.insertion_uz(),
+    insertion = BoundaryAverage("insertion", 2, name="insertion_uz")
+    outputs = [
+        Quantity("activation", lambda: activation.value),
+        Reaction("insertion"),
+        RadialBulge(axis=(0.0, 0.0, 1.0)),
+        insertion,
+        Progress(
+            lambda row: f"  ({kind}) alpha={row['activation']:.3f}  Rz={row['reaction_insertion'][2]:.5g} N  "
+            f"bulge={1e3 * row['max_radial_bulge']:.4f} mm  uz(insertion)={1e3 * row['insertion_uz']:.4f} mm  "
+            f"newton={row['newton_iterations']}"
+        ),
+    ]
+    if args.output is not None:
+        # Output is evaluated at cell midpoints: quadrature-point fibres cannot be, so
+        # the cell fields then use the same Laplace fibres in DG0.
+        out_materials = materials if a0_out is a0 else build_materials(domain, a0_out, args, activation)
+        cells = {
+            "fibre_stretch": fibre_stretch(deformation_gradient(problem.displacement()), a0_out),
+            "activation": {"muscle": activation.expr},
+            "cauchy_stress": cauchy_stress(problem, out_materials),
         }
-        if post.mixed:
-            row["volume_consistency"] = problem.check_solution()[0]["volume_consistency"]
-        rows.append(row)
-        if writers:
-            post.cell_fields()
-            for w in writers:
-                w.write(float(s))
-        if comm.rank == 0:
-            print(
-                f"  ({kind}) alpha={row['activation']:.3f}  Rz={row['reaction_insertion'][2]:.5g} N  "
-                f"bulge={1e3 * row['max_radial_bulge']:.4f} mm  uz(insertion)={1e3 * row['insertion_uz']:.4f} mm  "
-                f"newton={iterations}",
-                flush=True,
-            )
-
-    first = solver.solve(raise_on_failure=True)  # s = 0: passive state (traction only)
-    record(0.0, first.iterations)
+        outputs += [
+            VTX(args.output / f"muscle_{kind}_u.bp"),
+            CellFields(args.output / f"muscle_{kind}_cells.bp", cells),
+            JSONSummary(args.output / f"muscle_{kind}.json"),
+        ]
     stepping = hf.LoadStepping(
         initial_increment=1.0 / args.steps, max_increment=1.0 / args.steps, min_increment=1.0 / (64 * args.steps)
     )
-    steps = hf.solve_quasistatic(solver, 1.0, stepping, on_step=lambda st: record(st.load_factor, st.solve.iterations))
-    if writers:
-        for w in writers:
-            w.close()
+    # The passive state at s = 0 (traction only) is solved first: it is row 0.
+    sim = Simulation(problem, solver, stepping, outputs, name=f"muscle {kind}", solve_initial=True)
+    sim.run()
     return {
-        "steps": rows,
-        "cutbacks": sum(st.cutbacks for st in steps),
-        "insertion_area": post.area,
-        "dofs": problem.u.function_space.dofmap.index_map.size_global * problem.u.function_space.dofmap.index_map_bs,
+        "steps": sim.rows,
+        "cutbacks": sum(st.cutbacks for st in sim.steps),
+        "insertion_area": insertion.area,
+        "dofs": sim.dofs,
     }
 
 
@@ -265,8 +187,8 @@ def main(argv=None) -> dict:
     quad = 4 if args.formulation == "mixed" else 1
     a0 = laplace_fibres(domain, "origin", "insertion", representation=args.fibres, quadrature_degree=quad)
     a0_out = a0 if args.fibres != "quadrature" else laplace_fibres(domain, "origin", "insertion")
-    iso = run_experiment("isometric", domain, a0, a0_out, args, comm)
-    free = run_experiment("free", domain, a0, a0_out, args, comm)
+    iso = run_experiment("isometric", domain, a0, a0_out, args)
+    free = run_experiment("free", domain, a0, a0_out, args)
     forces = [row["reaction_insertion"][2] for row in iso["steps"]]
     summary = {
         "ranks": comm.size,

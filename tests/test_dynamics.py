@@ -1,4 +1,5 @@
-"""Verification of the dynamics package: seed examples, energy behaviour, convergence order.
+"""Verification of the dynamics package: seed examples, energy behaviour, convergence order,
+and the same time integration over the three-field (u, p, theta) problem.
 
 Run serially and under ``mpiexec -n 2``. The problems are tiny; each test
 takes a few seconds (first run: plus form compilation).
@@ -13,6 +14,9 @@ from dolfinx import mesh as dmesh
 
 import hyperfem as hf
 from hyperfem import dynamics as dyn
+from hyperfem.kinematics import isochoric_invariants
+from hyperfem.problem import SplitEnergy, solid_problem
+from hyperfem.problem.protocol import SolidProblem
 
 E_SEED, NU_SEED = 1000.0, 0.3
 
@@ -76,10 +80,10 @@ def test_seed000_1d_quasistatic_translation(comm):
     errors = []
 
     def check(record):
-        errors.append(np.abs(problem.u.x.array - math.sin(problem.time)).max())
+        errors.append(np.abs(problem.u.x.array - math.sin(problem.t_n)).max())
 
     history = dyn.integrate(problem, solver, dyn.TimeStepping(dt=0.25, t_end=2 * math.pi), on_step=check)
-    assert problem.time == pytest.approx(2 * math.pi)
+    assert problem.t_n == pytest.approx(2 * math.pi)
     assert len(history) == math.ceil(2 * math.pi / 0.25)
     assert sum(r.rejected for r in history) == 0
     assert comm.allreduce(max(errors), op=MPI.MAX) < 1e-10
@@ -228,8 +232,140 @@ def test_cutback_on_failure(comm):
     problem = strip(comm, dyn.Newmark())
     solver = hf.NewtonSolver(problem, {"snes_max_it": 3})  # steps above ~0.1 need more iterations
     hist = dyn.integrate(problem, solver, dyn.TimeStepping(dt=0.25, t_end=0.5, dt_min=1e-2))
-    assert problem.time == pytest.approx(0.5)
+    assert problem.t_n == pytest.approx(0.5)
     assert sum(r.rejected for r in hist) >= 1
     with pytest.raises(hf.ConvergenceError) as info:
         dyn.integrate(problem, solver, dyn.TimeStepping(dt=0.25, t_end=1.0, dt_min=0.2))
-    assert info.value.load_factor >= 0.5
+    assert info.value.time >= 0.5
+
+
+# -- dynamics of the three-field (u, p, theta) problem ------------------------------------
+def _split_material(mu=100.0, bulk_ratio=200.0):
+    """Plane-strain isochoric neo-Hookean (mu / 2)(I1bar - 3) with K = bulk_ratio * mu."""
+    return SplitEnergy(lambda F: 0.5 * mu * (isochoric_invariants(F)[0] - 3.0), mu * bulk_ratio)
+
+
+def _mixed(domain, **kwargs):
+    return solid_problem(domain, _split_material(), formulation="mixed", **kwargs)
+
+
+def _blocks(problem, array):
+    """(displacement as (n, gdim), the pressure and volume entries) of a state array."""
+    block = problem.displacement_block
+    rest = np.delete(array, block.dofs)
+    return array[block.dofs].reshape(-1, block.gdim), rest
+
+
+def _pressure_and_volume_error(problem) -> float:
+    """max(|p| / K, |theta - 1|) of the three-field state (0 for a stress-free state), all ranks."""
+    _, pressure = problem.base.update_fields()
+    K = problem.base.material.bulk_modulus
+    local = max(
+        np.abs(pressure.x.array / K).max(initial=0.0), np.abs(problem.base.volume.x.array - 1.0).max(initial=0.0)
+    )
+    return problem.domain.comm.allreduce(float(local), op=MPI.MAX)
+
+
+def test_incremental_problem_meets_the_protocol(comm):
+    """The construction of issue 9 (it failed with "Can't add expressions with different shapes")."""
+    mesh = dmesh.create_unit_square(comm, 2, 2)
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+    problem = dyn.IncrementalProblem(
+        _mixed(domain, bcs=[hf.Clamp("left")]), dyn.BackwardEuler(), dyn.MassDensity(1000.0)
+    )
+    assert isinstance(problem, SolidProblem)
+    assert problem.rigid_motion_resisted and not problem.base.rigid_motion_resisted
+    assert problem.displacement_block.space.value_shape == (2,)
+
+
+@pytest.mark.parametrize(
+    "scheme, damping",
+    [
+        (dyn.Newmark(), dyn.RayleighDamping(beta=0.01)),
+        (dyn.GeneralizedAlpha(0.8), None),
+        (dyn.BackwardEuler(), None),
+    ],
+    ids=["newmark-stiffness-damping", "generalized-alpha", "backward-euler"],
+)
+def test_mixed_free_body_under_gravity(comm, scheme, damping):
+    r"""No Dirichlet conditions, uniform dead body force rho g: the body falls rigidly, u = g t^2 / 2.
+
+    Newmark and generalized-alpha integrate a constant acceleration exactly; backward Euler
+    gives u_n = g t_n (t_n + dt) / 2 (v_{n+1} = v_n + dt g, u_{n+1} = u_n + dt v_{n+1}). The
+    initial acceleration, solved on the displacement space, is g; pressure and volume change
+    stay 0 (F = I). Stiffness-proportional damping does not act on a translation.
+    """
+    mesh = dmesh.create_unit_square(comm, 2, 2)
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+    g, rho, dt = np.array([3.0, -2.0]), 2.0, 0.1
+    base = _mixed(domain, loads=[hf.BodyForce(tuple(rho * g), profile=dyn.Steady())])
+    problem = dyn.IncrementalProblem(base, scheme, dyn.MassDensity(rho), damping)
+    problem.initial_acceleration()
+    a0, rest = _blocks(problem, problem.a.x.array)
+    assert np.abs(a0 - g).max() < 1e-12 and not rest.any()
+    dyn.integrate(problem, tight_solver(problem), dyn.TimeStepping(dt=dt, t_end=0.5))
+    t = problem.t_n
+    u, _ = _blocks(problem, problem.u.x.array)
+    exact = 0.5 * g * t * (t + dt) if isinstance(scheme, dyn.BackwardEuler) else 0.5 * g * t**2
+    assert comm.allreduce(float(np.abs(u - exact).max(initial=0.0)), op=MPI.MAX) < 1e-12
+    assert _pressure_and_volume_error(problem) < 1e-12
+
+
+def test_mixed_quasistatic_translation(comm):
+    """u = (sin t, 0) on X1 = 0, no inertia, traction-free elsewhere: u = (sin t, 0) everywhere, p = 0, theta = 1."""
+    mesh = dmesh.create_unit_square(comm, 2, 2)
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+
+    def motion(x, t):
+        return np.vstack([np.full(x.shape[1], math.sin(t)), np.zeros(x.shape[1])])
+
+    problem = dyn.IncrementalProblem(_mixed(domain, bcs=[hf.PrescribedDisplacement("left", motion)]), dyn.QuasiStatic())
+    errors = []
+
+    def check(record):
+        u, _ = _blocks(problem, problem.u.x.array)
+        error = comm.allreduce(float(np.abs(u - [math.sin(problem.t_n), 0.0]).max(initial=0.0)), op=MPI.MAX)
+        errors.append(max(error, _pressure_and_volume_error(problem)))
+
+    history = dyn.integrate(problem, tight_solver(problem), dyn.TimeStepping(dt=0.5, t_end=math.pi), on_step=check)
+    assert problem.t_n == pytest.approx(math.pi) and sum(r.rejected for r in history) == 0
+    assert max(errors) < 1e-10
+
+
+def test_generalized_alpha_times(comm):
+    r"""A generalized-alpha step puts the loads at t_{n+1-alpha_f} and the Dirichlet values at t_{n+1}."""
+    mesh = dmesh.create_interval(comm, 4, [0.0, 1.0])
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+    bc = hf.PrescribedDisplacement("left", lambda x, t: np.full((1, x.shape[1]), math.sin(t)))
+    base = hf.HyperelasticProblem(domain, seed_material, bcs=[bc])
+    scheme = dyn.GeneralizedAlpha(0.5)
+    problem = dyn.IncrementalProblem(base, scheme, dyn.MassDensity(1.0))
+    problem.prepare(0.3)
+    assert problem.t_n == 0.0 and problem.time == pytest.approx(0.3 * (1.0 - scheme.alpha_f))
+    values = np.full(problem.u.x.array.size, np.nan)
+    for d in problem.bcs:
+        d.set(values)
+    fixed = values[np.isfinite(values)]
+    assert comm.allreduce(fixed.size) > 0 and np.allclose(fixed, math.sin(0.3))
+
+
+def test_mixed_newmark_conserves_energy(comm):
+    """The strip of ``strip()`` in the three-field form (mu of the seed material, K = 50 mu): K + Pi_int is conserved.
+
+    Measured: relative drift 3.0e-4 over 50 steps while 99 % of the energy goes from
+    kinetic to stored and back; backward Euler loses 15 % on the same run.
+    """
+    mesh = dmesh.create_rectangle(comm, [[0.0, 0.0], [4.0, 1.0]], [8, 2], dmesh.CellType.triangle)
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+    mu = E_SEED / (2 * (1 + NU_SEED))
+    base = solid_problem(domain, _split_material(mu, 50.0), bcs=[hf.Clamp("left")])
+    problem = dyn.IncrementalProblem(base, dyn.Newmark(), dyn.MassDensity(1.0))
+    problem.v.sub(0).interpolate(lambda x: np.vstack([np.zeros(x.shape[1]), 4.0 * (x[0] / 4.0) ** 2]))
+    problem.initial_acceleration()
+    diag = dyn.Diagnostics(problem, [(4.0, 0.5)])
+    diag.record()
+    dyn.integrate(problem, tight_solver(problem), dyn.TimeStepping(dt=0.02, t_end=1.0), on_step=diag.record)
+    total = diag.column("total_energy")
+    assert diag.column("elastic_energy").max() > 0.9 * total[0]
+    assert np.abs(total / total[0] - 1.0).max() < 2e-3
+    assert np.abs(diag.column("volume_ratio") - 1.0).max() < 1e-3  # nearly incompressible

@@ -11,8 +11,8 @@ from dolfinx import mesh as dmesh
 
 import hyperfem as hf
 from hyperfem import dynamics as dyn
-from hyperfem.dynamics.beam_theory import euler_bernoulli_cantilever, timoshenko_cantilever
-from hyperfem.dynamics.cantilever import CASES
+from hyperfem.cases.beam_theory import euler_bernoulli_cantilever, timoshenko_cantilever
+from hyperfem.cases.cantilever_dynamics import CASES
 
 ROOT = Path(__file__).resolve().parent.parent
 BEAM_H2 = ROOT / "meshes" / "beam_h2.msh"  # committed: a gmsh of another version meshes differently

@@ -1,5 +1,10 @@
 """Dynamics: time integrators as incremental potentials, damping, mass, time stepping, diagnostics.
 
+Time-integration concepts only; the reference set-ups (the dynamic
+cantilever, beam theory) live in :mod:`hyperfem.cases`. Any problem that
+meets :class:`~hyperfem.problem.protocol.SolidProblem` (displacement or
+three-field) can be integrated in time.
+
 >>> from mpi4py import MPI
 >>> import hyperfem as hf
 >>> from hyperfem import dynamics as dyn
@@ -12,24 +17,23 @@
 >>> history = dyn.integrate(problem, hf.NewtonSolver(problem), dyn.TimeStepping(dt=0.05, t_end=0.1))
 """
 
-from hyperfem.dynamics import cantilever
 from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form, viscous_damping
-from hyperfem.dynamics.diagnostics import Diagnostics, PointProbe
-from hyperfem.dynamics.incremental import DynamicState, IncrementalProblem
+from hyperfem.dynamics.diagnostics import Diagnostics
+from hyperfem.dynamics.incremental import DisplacementBlock, DynamicState, IncrementalProblem
 from hyperfem.dynamics.integrators import BackwardEuler, GeneralizedAlpha, Newmark, QuasiStatic, TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity
 from hyperfem.dynamics.motion import Ramp, RigidRotation, Steady, rotating_surface, rotation_matrix
-from hyperfem.dynamics.stepping import TimeStepping, TimeStepRecord, integrate
+from hyperfem.solver.stepping import TimeStepping, TimeStepRecord, integrate
 
 __all__ = [
     "BackwardEuler",
     "Diagnostics",
+    "DisplacementBlock",
     "DynamicState",
     "GeneralizedAlpha",
     "IncrementalProblem",
     "MassDensity",
     "Newmark",
-    "PointProbe",
     "QuasiStatic",
     "Ramp",
     "RayleighDamping",
@@ -38,7 +42,6 @@ __all__ = [
     "TimeIntegrator",
     "TimeStepRecord",
     "TimeStepping",
-    "cantilever",
     "integrate",
     "reference_stiffness_form",
     "rotating_surface",

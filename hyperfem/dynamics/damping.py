@@ -29,7 +29,7 @@ import ufl
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import is_finite_number
+from hyperfem.materials.parameters import check_nonnegative, is_finite_number
 
 __all__ = ["RayleighDamping", "reference_stiffness_form", "viscous_damping"]
 
@@ -48,9 +48,7 @@ class RayleighDamping:
 
     def __post_init__(self) -> None:
         for name in ("alpha", "beta"):
-            v = getattr(self, name)
-            if not (is_finite_number(v) and v >= 0):
-                raise ParameterError(f"RayleighDamping: {name} must be a finite number >= 0, got {v!r}")
+            check_nonnegative(name, getattr(self, name), "RayleighDamping")
 
     @classmethod
     def from_damping_ratios(cls, zeta1: float, omega1: float, zeta2: float, omega2: float) -> RayleighDamping:

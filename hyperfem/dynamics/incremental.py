@@ -1,24 +1,35 @@
 r"""One time step as a nonlinear problem for :class:`~hyperfem.solver.NewtonSolver`.
 
-:class:`IncrementalProblem` composes a
-:class:`~hyperfem.problem.HyperelasticProblem` (its public forms
-``energy_internal``, ``energy_external``, ``follower_residual``, its
-Dirichlet conditions and :meth:`set_load_factor`) with a
+:class:`IncrementalProblem` composes any problem that meets
+:class:`~hyperfem.problem.protocol.SolidProblem` — the displacement problem
+or the three-field :math:`(u, p, \theta)` problem — with a
 :class:`~hyperfem.dynamics.integrators.TimeIntegrator`, a
 :class:`~hyperfem.dynamics.mass.MassDensity` and optional
 :class:`~hyperfem.dynamics.damping.RayleighDamping` into the incremental potential
 
 .. math::
-    \Pi_\Delta(u) = \frac{A}{2}\int_\Omega \rho\,|u - \tilde u|^2\,dX
+    \Pi_\Delta(w) = \frac{A}{2}\int_\Omega \rho\,|u - \tilde u|^2\,dX
       + \frac{B}{2}(u - \hat u)^T C (u - \hat u)
-      + \frac{1}{1-\alpha_f}\,\Pi(u_{\alpha}),\qquad u_\alpha = (1-\alpha_f)u + \alpha_f u_n .
+      + \frac{1}{1-\alpha_f}\,\Pi(w_{\alpha}),\qquad u_\alpha = (1-\alpha_f)u + \alpha_f u_n ,
+
+where :math:`w` is the base problem's state and :math:`u` its displacement
+(:meth:`~hyperfem.problem.protocol.SolidProblem.displacement`). Only the
+displacement has a rate: velocity, acceleration and the predictors
+:math:`\tilde u, \hat u` are functions on the state's space whose other
+blocks (pressure, volume ratio) are zero, and generalized-:math:`\alpha`
+weights the displacement only — the pressure and volume fields of
+:math:`w_\alpha` are those of :math:`t_{n+1}` (they are constraint fields,
+not states of motion). For the displacement problem :math:`w = u`.
 
 ``energy_internal`` holds everything but the dead-load work, so
 :class:`~hyperfem.solver.NewtonSolver` uses :math:`\Pi_\Delta` as its
-line-search objective exactly as for a static problem, and its inversion
-pre-check acts on :math:`J = \det F(u_{n+1})`. All step-size dependent
-quantities are :class:`dolfinx.fem.Constant` or :class:`dolfinx.fem.Function`
-values: the forms are compiled once.
+line-search objective exactly as for a static problem (when the base problem
+is conservative), its inversion pre-check acts on the base problem's
+:meth:`~hyperfem.problem.protocol.SolidProblem.volume_jacobian` at
+:math:`t_{n+1}`, and its boundary-increment predictor carries prescribed
+boundary motion into the interior. All step-size dependent quantities are
+:class:`dolfinx.fem.Constant` or :class:`dolfinx.fem.Function` values: the
+forms are compiled once.
 """
 
 from __future__ import annotations
@@ -34,62 +45,157 @@ from dolfinx import fem
 from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form
 from hyperfem.dynamics.integrators import TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity
+from hyperfem.errors import ParameterError, SolverError
+from hyperfem.problem.protocol import SolidProblem
 from hyperfem.problem.quadrature import unify_cell_quadrature
+from hyperfem.solver.linear import LinearSolver
 
-__all__ = ["DynamicState", "IncrementalProblem", "unify_cell_quadrature"]
+__all__ = ["DisplacementBlock", "DynamicState", "IncrementalProblem"]
+
+Expr = ufl.core.expr.Expr
 
 
 class DynamicState:
-    """A copy of :math:`(t, u, v, a)` to restore a rejected step."""
+    """A copy of :math:`(t, w, v, a)` to restore a rejected step."""
 
     def __init__(self, t: float, u: np.ndarray, v: np.ndarray, a: np.ndarray):
         self.t, self.u, self.v, self.a = float(t), u.copy(), v.copy(), a.copy()
 
 
-class IncrementalProblem:
-    """The nonlinear problem of one time step (satisfies the NewtonSolver protocol).
+class DisplacementBlock:
+    """Where the displacement sits in the state of a :class:`~hyperfem.problem.protocol.SolidProblem`.
+
+    The protocol puts the displacement first: the state ``u`` lives on the
+    displacement space itself or on a mixed space whose first block is the
+    displacement.
 
     Args:
-        base: The hyperelastic problem (forms, loads, boundary conditions).
-        integrator: Time-stepping scheme.
-        density: Mass density (and lumping); ignored by quasi-static schemes.
-        damping: Rayleigh damping; ``None`` for none.
-        boundary_predictor: When prescribed boundary values change over a
-            step, start Newton from one linearised step that carries the
-            boundary increment into the interior (instead of moving only the
-            boundary nodes, which can invert the adjacent cells).
+        problem: The problem.
 
     Attributes:
-        u: Displacement :math:`u_{n+1}` (the base problem's unknown).
-        v, a: Velocity and acceleration at the current time.
-        time: Current time :math:`t_n` (of the last accepted state).
+        space: The displacement space, collapsed (the state's own space when
+            the whole state is the displacement).
+        dofs: Local indices (ghosts included) into the state's array of the
+            entries of :attr:`space`, or ``None`` when the whole state is the
+            displacement.
+        gdim: Number of displacement components.
+    """
+
+    def __init__(self, problem: SolidProblem):
+        W = problem.u.function_space
+        Vd = problem.displacement_space()
+        self.gdim = problem.domain.gdim
+        self._shape = problem.u.ufl_shape
+        if not Vd.component():  # the whole space
+            self.space, self.dofs = W, None
+        else:
+            self.space, dofs = Vd.collapse()
+            self.dofs = np.asarray(dofs[0] if isinstance(dofs, list) else dofs, dtype=np.int32)
+        self._copy: fem.Function | None = None
+
+    @property
+    def whole(self) -> bool:
+        """Whether the state is all displacement."""
+        return self.dofs is None
+
+    def restrict(self, array: np.ndarray) -> np.ndarray:
+        """Zero, in place, the entries of a state array that are not displacement; returns it."""
+        if self.dofs is not None:
+            keep = array[self.dofs]
+            array[:] = 0.0
+            array[self.dofs] = keep
+        return array
+
+    def function(self, state: fem.Function) -> fem.Function:
+        """The displacement of ``state`` as a function on :attr:`space` (``state`` itself when whole).
+
+        The copy is one function, refreshed by every call.
+        """
+        if self.dofs is None:
+            return state
+        if self._copy is None:
+            self._copy = fem.Function(self.space, name="displacement")
+        self._copy.x.array[:] = state.x.array[self.dofs]
+        return self._copy
+
+    def insert(self, displacement: np.ndarray, state: fem.Function) -> None:
+        """Write an array of :attr:`space` into the displacement entries of ``state`` (others untouched)."""
+        if self.dofs is None:
+            state.x.array[:] = displacement
+        else:
+            state.x.array[self.dofs] = displacement
+
+    def embed(self, displacement: Expr) -> Expr:
+        """A state-shaped UFL vector with ``displacement`` in the displacement block, zero elsewhere."""
+        if self.dofs is None:
+            return displacement
+        rest = [0.0] * (self._shape[0] - self.gdim)
+        return ufl.as_vector([displacement[i] for i in range(self.gdim)] + rest)
+
+    def mask(self, state: Expr) -> Expr:
+        """``state`` (a state-shaped UFL expression) with every block but the displacement zeroed."""
+        if self.dofs is None:
+            return state
+        n = self._shape[0]
+        return ufl.as_vector([state[i] for i in range(self.gdim)] + [0.0] * (n - self.gdim))
+
+
+class IncrementalProblem:
+    """The nonlinear problem of one time step; meets :class:`~hyperfem.problem.protocol.SolidProblem`.
+
+    Args:
+        base: The problem of the body (forms, loads, boundary conditions):
+            any :class:`~hyperfem.problem.protocol.SolidProblem`.
+        integrator: Time-stepping scheme.
+        density: Mass density (and lumping); ignored by quasi-static schemes.
+        damping: Rayleigh damping; ``None`` for none. For a three-field base
+            the stiffness-proportional part uses the reference tangent in
+            displacement directions at :math:`p = 0, \\theta = 1` (the
+            isochoric stiffness: pressure and volume have no rate).
+        linear_solver: Configuration of the initial-acceleration (mass) solve.
+
+    Attributes:
+        u: The state :math:`w_{n+1}` (the base problem's unknown).
+        v, a: Velocity and acceleration at :math:`t_n` (functions on the
+            state's space, zero outside the displacement block).
+        t_n: Time of the last accepted state.
+        displacement_block: Where the displacement sits in the state.
     """
 
     def __init__(
         self,
-        base,
+        base: SolidProblem,
         integrator: TimeIntegrator,
         density: MassDensity | None = None,
         damping: RayleighDamping | None = None,
-        boundary_predictor: bool = True,
+        *,
+        linear_solver: LinearSolver | None = None,
     ):
+        if not isinstance(base, SolidProblem):
+            raise ParameterError(
+                f"IncrementalProblem: base must meet the SolidProblem protocol, got {type(base).__name__}"
+            )
         self.base = base
-        self.boundary_predictor = boundary_predictor
-        # Inertia makes the tangent regular without Dirichlet conditions.
-        self.rigid_motion_resisted = bool(integrator.dynamic)
-        self._predictor = None
         self.integrator = integrator
+        self.linear_solver = LinearSolver() if linear_solver is None else linear_solver
+        # Inertia makes the tangent regular without Dirichlet conditions.
+        self.rigid_motion_resisted = bool(integrator.dynamic) or base.rigid_motion_resisted
         self.domain = base.domain
-        self.V = base.V
+        self.degree = base.degree
+        self.quadrature_degree = base.quadrature_degree
         self.u = base.u
-        self.time = float(base.load_factor)
+        self.V = base.u.function_space
+        self.t_n = float(base.time)
         self.damping = damping if damping is not None and damping.active else None
         if integrator.dynamic and density is None:
-            raise ValueError("IncrementalProblem: a dynamic scheme needs a MassDensity")
+            raise ParameterError("IncrementalProblem: a dynamic scheme needs a MassDensity")
         self.density = density
+        block = DisplacementBlock(base)
+        self.displacement_block = block
         mesh = self.domain.mesh
         V = self.V
         u = self.u
+        disp = base.displacement
         self.v = fem.Function(V, name="velocity")
         self.a = fem.Function(V, name="acceleration")
         self._u_n = fem.Function(V)
@@ -97,13 +203,14 @@ class IncrementalProblem:
         self._u_hat = fem.Function(V)
         self._A = fem.Constant(mesh, 0.0)
         self._B = fem.Constant(mesh, 0.0)
-        test = ufl.TestFunction(V)
-        self._test = test
         degree = base.degree
 
         af = float(integrator.alpha_f)
         if af:
-            u_alpha = (1.0 - af) * u + af * self._u_n
+            if block.whole:
+                u_alpha = (1.0 - af) * u + af * self._u_n
+            else:
+                u_alpha = u + af * block.mask(self._u_n - u)
             scale = 1.0 / (1.0 - af)
             internal = scale * ufl.replace(base.energy_internal, {u: u_alpha})
             external = scale * ufl.replace(base.energy_external, {u: u_alpha})
@@ -112,18 +219,20 @@ class IncrementalProblem:
             internal, external, follower = base.energy_internal, base.energy_external, base.follower_residual
 
         if integrator.dynamic:
-            du = u - self._u_tilde
+            du = disp(u) - disp(self._u_tilde)
             internal = internal + 0.5 * self._A * density.integral(ufl.dot(du, du), self.domain, degree)
             if self.damping is not None:
-                dv = u - self._u_hat
+                dv = disp(u) - disp(self._u_hat)
                 if self.damping.alpha:
                     internal = internal + 0.5 * self.damping.alpha * self._B * density.integral(
                         ufl.dot(dv, dv), self.domain, degree
                     )
                 if self.damping.beta:
+                    dw = block.embed(dv)
                     internal = internal + 0.5 * self.damping.beta * self._B * reference_stiffness_form(
-                        base.energy_internal, u, dv, dv
+                        base.energy_internal, u, dw, dw
                     )
+        md = None
         if density is not None:
             md = density.metadata(degree)
             if not density.lumped:
@@ -132,35 +241,41 @@ class IncrementalProblem:
             external = unify_cell_quadrature(external, md)
             if follower is not None:
                 follower = unify_cell_quadrature(follower, md)
-        self._unified_md = md if density is not None else None
+        self._unified_md = md
         self.energy_internal = internal
         self.energy_external = external
         self.follower_residual = follower
         self.conservative = base.conservative
-        self.residual = ufl.derivative(internal - external, u, test)
+        self.residual = ufl.derivative(internal - external, u, ufl.TestFunction(V))
         if follower is not None:
             self.residual = self.residual + follower
         self.jacobian = ufl.derivative(self.residual, u, ufl.TrialFunction(V))
 
         # Diagnostics forms at the current state.
         self._kinetic = (
-            None if density is None else fem.form(0.5 * density.integral(ufl.dot(self.v, self.v), self.domain, degree))
+            None
+            if density is None
+            else fem.form(0.5 * density.integral(ufl.dot(disp(self.v), disp(self.v)), self.domain, degree))
         )
         self._elastic = fem.form(base.energy_internal)
         self._external = fem.form(base.energy_external)
 
     # -- protocol ------------------------------------------------------------
     @property
-    def bcs(self):
-        """Dirichlet conditions of the base problem (values at :math:`t_{n+1}`)."""
+    def bcs(self) -> list[fem.DirichletBC]:
+        """Dirichlet conditions of the base problem (values at :math:`t_{n+1}` during a step)."""
         return self.base.bcs
 
     @property
-    def load_factor(self) -> float:
-        """The time the loads are evaluated at (for messages)."""
-        return self.base.load_factor
+    def time(self) -> float:
+        r"""The time the loads are at: :math:`t_{n+1}` (:math:`t_{n+1-\alpha_f}`) during a step, else :attr:`t_n`."""
+        return self.base.time
 
-    def check_solution(self):
+    def set_time(self, t_loads: float, t_bcs: float | None = None) -> None:
+        """Move the base problem's loads and updaters to ``t_loads``, its Dirichlet values to ``t_bcs``."""
+        self.base.set_time(t_loads, t_bcs)
+
+    def check_solution(self) -> tuple[dict[str, float], str | None]:
         """The base problem's consistency indicators."""
         return self.base.check_solution()
 
@@ -168,38 +283,44 @@ class IncrementalProblem:
         """The base problem's non-finite load terms."""
         return self.base.nonfinite_terms()
 
-    def displacement(self, state=None):
+    def displacement(self, state: fem.Function | None = None) -> Expr:
         """The base problem's displacement of ``state``."""
         return self.base.displacement(state)
 
-    def displacement_space(self):
+    def displacement_space(self) -> fem.FunctionSpace:
         """The base problem's displacement (sub)space."""
         return self.base.displacement_space()
 
-    def volume_jacobian(self):
-        """:math:`J = \\det F(u_{n+1})`."""
+    def volume_jacobian(self) -> Expr:
+        """The base problem's inversion measure at :math:`t_{n+1}`."""
         return self.base.volume_jacobian()
 
-    def quadrature_points(self):
+    def quadrature_points(self) -> np.ndarray:
         """Quadrature points of the base problem."""
         return self.base.quadrature_points()
 
     # -- stepping ------------------------------------------------------------
     def save(self) -> DynamicState:
         """Snapshot of the accepted state."""
-        return DynamicState(self.time, self.u.x.array, self.v.x.array, self.a.x.array)
+        return DynamicState(self.t_n, self.u.x.array, self.v.x.array, self.a.x.array)
 
     def restore(self, state: DynamicState) -> None:
         """Return to a snapshot (loads and boundary values included)."""
-        self.time = state.t
+        self.t_n = state.t
         self.u.x.array[:] = state.u
         self.v.x.array[:] = state.v
         self.a.x.array[:] = state.a
-        self.base.set_load_factor(state.t)
+        self.base.set_time(state.t)
 
     def prepare(self, dt: float) -> None:
-        """Set loads, boundary values, predictors and the initial guess for a step ``dt``."""
-        t_new = self.time + dt
+        r"""Set loads, boundary values, predictors and the initial guess for a step ``dt``.
+
+        Loads and updaters go to :math:`t_{n+1-\alpha_f}`, Dirichlet values to
+        :math:`t_{n+1}`; the initial guess is :math:`w_n + \Delta t\,v_n` (the
+        secant rate when quasi-static). The solver's predictor then lifts the
+        boundary increment into the interior.
+        """
+        t_new = self.t_n + dt
         integ = self.integrator
         self._u_n.x.array[:] = self.u.x.array
         A, u_tilde, B, u_hat = integ.coefficients(dt, self.u.x.array, self.v.x.array, self.a.x.array)
@@ -207,99 +328,94 @@ class IncrementalProblem:
         self._B.value = B
         self._u_tilde.x.array[:] = u_tilde
         self._u_hat.x.array[:] = u_hat
-        af = float(integ.alpha_f)
-        old = [bc.g.x.array.copy() for bc in self.base.bcs]
-        self.base.set_load_factor(t_new)
-        if af:
-            # Loads at t_{n+1-alpha_f}, boundary values at t_{n+1}.
-            values = [bc.g.x.array.copy() for bc in self.base.bcs]
-            self.base.set_load_factor(t_new - af * dt)
-            for bc, g in zip(self.base.bcs, values, strict=True):
-                bc.g.x.array[:] = g
-        # Predictor u_n + dt v_n as the Newton initial guess (secant rate when quasi-static).
+        self.base.set_time(t_new - float(integ.alpha_f) * dt, t_new)
         self.u.x.array[:] += dt * self.v.x.array
-        if self.boundary_predictor:
-            moved = any(not np.array_equal(g, bc.g.x.array) for g, bc in zip(old, self.base.bcs, strict=True))
-            if self.domain.comm.allreduce(moved, op=MPI.LOR):
-                self._lift_boundary_increment()
-
-    def _lift_boundary_increment(self) -> None:
-        """One linearised step from the predictor with the new boundary values."""
-        if self._predictor is None:
-            R, K = fem.form(self.residual), fem.form(self.jacobian)
-            A = fpetsc.create_matrix(K)
-            b = fpetsc.create_vector(self.V)
-            ksp = PETSc.KSP().create(self.domain.comm)
-            ksp.setOperators(A)
-            ksp.setType("preonly")
-            ksp.getPC().setType("lu")
-            ksp.getPC().setFactorSolverType("mumps")
-            self._predictor = (R, K, A, b, ksp, A.createVecRight())
-        R, K, A, b, ksp, du = self._predictor
-        bcs = self.base.bcs
-        x = self.u.x.petsc_vec
-        A.zeroEntries()
-        fpetsc.assemble_matrix(A, K, bcs=bcs)
-        A.assemble()
-        with b.localForm() as loc:
-            loc.set(0.0)
-        fpetsc.assemble_vector(b, R)
-        b.scale(-1.0)
-        fpetsc.apply_lifting(b, [K], bcs=[bcs], x0=[x], alpha=1.0)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
-        ksp.solve(b, du)
-        if ksp.getConvergedReason() > 0 and np.isfinite(du.norm()):
-            x.axpy(1.0, du)
-            self.u.x.scatter_forward()
 
     def commit(self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray) -> None:
         """Accept the converged step: update :math:`v, a` and the time."""
         v, a = self.integrator.update(dt, self.u.x.array, u_n, v_n, a_n)
-        self.v.x.array[:] = v
-        self.a.x.array[:] = a
-        self.time += dt
+        self.v.x.array[:] = self.displacement_block.restrict(v)
+        self.a.x.array[:] = self.displacement_block.restrict(a)
+        self.t_n += dt
         if self.integrator.alpha_f:
-            self.base.set_load_factor(self.time)
+            self.base.set_time(self.t_n)
 
     def step_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Copies of :math:`(u_n, v_n, a_n)` (before :meth:`prepare` changes ``u``)."""
+        """Copies of :math:`(w_n, v_n, a_n)` (before :meth:`prepare` changes ``u``)."""
         return self.u.x.array.copy(), self.v.x.array.copy(), self.a.x.array.copy()
 
     # -- initial state ---------------------------------------------------------
     def initial_acceleration(self) -> None:
-        r"""Solve :math:`M a_0 = f_\text{ext}(t_0) - f_\text{int}(u_0) - C v_0` (zero on Dirichlet dofs)."""
+        r"""Solve :math:`M a_0 = f_\text{ext}(t_0) - f_\text{int}(w_0) - C v_0` (zero on Dirichlet dofs).
+
+        The system lives on the collapsed displacement space: the rows of the
+        base residual tested with displacement directions (pressure and volume
+        have no acceleration).
+
+        Raises:
+            SolverError: If the mass solve fails.
+        """
         if not self.integrator.dynamic:
             return
         base = self.base
-        base.set_load_factor(self.time)
-        V = self.V
+        block = self.displacement_block
+        base.set_time(self.t_n)
+        Vc = block.space
         degree = base.degree
-        test, trial = self._test, ufl.TrialFunction(V)
+        disp = base.displacement
+        test, trial = ufl.TestFunction(Vc), ufl.TrialFunction(Vc)
         m = self.density.integral(ufl.dot(trial, test), self.domain, degree)
-        rhs = -base.residual
+        (base_test,) = base.residual.arguments()
+        rhs = -base.residual if block.whole else -ufl.replace(base.residual, {base_test: block.embed(test)})
         if self.damping is not None:
             if self.damping.alpha:
-                rhs = rhs - self.damping.alpha * self.density.integral(ufl.dot(self.v, test), self.domain, degree)
+                rhs = rhs - self.damping.alpha * self.density.integral(ufl.dot(disp(self.v), test), self.domain, degree)
             if self.damping.beta:
-                rhs = rhs - self.damping.beta * reference_stiffness_form(base.energy_internal, self.u, self.v, test)
+                rhs = rhs - self.damping.beta * reference_stiffness_form(
+                    base.energy_internal, self.u, block.embed(disp(self.v)), block.embed(test)
+                )
         rhs = unify_cell_quadrature(rhs, self._unified_md)
-        M = fpetsc.assemble_matrix(fem.form(m), bcs=base.bcs)
-        M.assemble()
-        b = fpetsc.assemble_vector(fem.form(rhs))
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fpetsc.set_bc(b, base.bcs, alpha=0.0)
-        ksp = PETSc.KSP().create(self.domain.comm)
-        ksp.setOperators(M)
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        ksp.getPC().setFactorSolverType("mumps")
+        if block.whole:
+            M = fpetsc.assemble_matrix(fem.form(m), bcs=base.bcs)
+            M.assemble()
+            b = fpetsc.assemble_vector(fem.form(rhs))
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            fpetsc.set_bc(b, base.bcs, alpha=0.0)
+        else:
+            M = fpetsc.assemble_matrix(fem.form(m))
+            M.assemble()
+            b = fpetsc.assemble_vector(fem.form(rhs))
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            local, rows = self._constrained_rows()
+            M.zeroRowsColumns(rows, diag=1.0)
+            b.array_w[local] = 0.0
         x = M.createVecRight()
-        ksp.solve(b, x)
-        self.a.x.petsc_vec.array_w[:] = x.array_r
-        self.a.x.scatter_forward()
-        for obj in (ksp, M, b, x):
-            obj.destroy()
+        try:
+            reason = self.linear_solver.solve(self.domain.comm, M, b, x, kind="mass")
+            if reason <= 0 or not np.isfinite(x.norm()):
+                raise SolverError(
+                    f"IncrementalProblem: the mass solve of the initial acceleration failed (KSP reason {reason})"
+                )
+            a0 = fem.Function(Vc)
+            a0.x.petsc_vec.array_w[:] = x.array_r
+            a0.x.scatter_forward()
+        finally:
+            for obj in (M, b, x):
+                obj.destroy()
+        self.a.x.array[:] = 0.0
+        block.insert(a0.x.array, self.a)
+
+    def _constrained_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Owned displacement dofs under a Dirichlet condition: local and global indices in the collapsed space."""
+        block = self.displacement_block
+        constrained = np.zeros(len(self.u.x.array), dtype=bool)
+        for bc in self.base.bcs:
+            constrained[bc.dof_indices()[0]] = True
+        imap, bs = block.space.dofmap.index_map, block.space.dofmap.index_map_bs
+        owned = imap.size_local * bs
+        local = np.flatnonzero(constrained[block.dofs[:owned]]).astype(np.int32)
+        blocks = imap.local_to_global(local // bs)
+        return local, (blocks * bs + local % bs).astype(PETSc.IntType)
 
     # -- energies ----------------------------------------------------------------
     def _sum(self, form) -> float:
@@ -310,7 +426,7 @@ class IncrementalProblem:
         return 0.0 if self._kinetic is None or not self.integrator.dynamic else self._sum(self._kinetic)
 
     def elastic_energy(self) -> float:
-        r"""Stored energy :math:`\int\psi(F)\,dX`."""
+        r"""Stored energy :math:`\Pi_\text{int}` of the base problem (:math:`\int\psi(F)\,dX` for displacement only)."""
         return self._sum(self._elastic)
 
     def external_work(self) -> float:

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import is_finite_number
+from hyperfem.materials.parameters import check_positive, is_finite_number
 
 __all__ = ["BackwardEuler", "GeneralizedAlpha", "Newmark", "QuasiStatic", "TimeIntegrator"]
 
@@ -110,9 +110,7 @@ class _AlphaFamily(TimeIntegrator):
 
     def _check(self) -> None:
         for name in ("beta", "gamma"):
-            v = getattr(self, name)
-            if not (is_finite_number(v) and v > 0):
-                raise ParameterError(f"{type(self).__name__}: {name} must be a finite number > 0, got {v!r}")
+            check_positive(name, getattr(self, name), type(self).__name__)
 
     def _predict(self, dt, u_n, v_n, a_n):
         u_pred = u_n + dt * v_n + dt**2 * (0.5 - self.beta) * a_n

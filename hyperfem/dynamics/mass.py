@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import ufl
+from dolfinx import fem
 
 from hyperfem.errors import ParameterError
 from hyperfem.materials.parameters import check_positive
@@ -58,4 +59,6 @@ class MassDensity:
     def integral(self, integrand: ufl.core.expr.Expr, domain: Domain, degree: int) -> ufl.Form:
         r""":math:`\sum_r \int_{\Omega_r} \rho_r\,(\text{integrand})\,dX` with the mass quadrature."""
         md = self.metadata(degree)
-        return sum(rho * integrand * domain.dx(name, metadata=md) for name, rho in self._regions)
+        mesh = domain.mesh
+        # Densities enter as Constants: one compiled form serves every density.
+        return sum(fem.Constant(mesh, rho) * integrand * domain.dx(name, metadata=md) for name, rho in self._regions)

@@ -22,7 +22,8 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from hyperfem.errors import ParameterError
+from hyperfem.errors import ParameterError, SolverError
+from hyperfem.solver.linear import LinearSolver, unique_prefix
 
 __all__ = [
     "REPRESENTATIONS",
@@ -107,39 +108,48 @@ def fibres_from_callable(
 
 
 def fibres_from_expression(
-    mesh, vector: ufl.core.expr.Expr, representation: str = "DG0", quadrature_degree: int = 1
+    mesh,
+    vector: ufl.core.expr.Expr,
+    representation: str = "DG0",
+    quadrature_degree: int = 1,
+    linear_solver: LinearSolver | None = None,
 ) -> fem.Function:
     """Fibres from a UFL vector expression (e.g. a gradient), normalised.
 
     ``"DG0"`` and ``"quadrature"`` interpolate the expression at cell
     midpoints or quadrature points; ``"P1"`` takes its :math:`L^2` projection
-    onto continuous P1 and normalises the vertex values.
+    onto continuous P1 (solved with ``linear_solver``, default
+    :class:`~hyperfem.solver.linear.LinearSolver`) and normalises the vertex values.
     """
     V = fibre_space(mesh, representation, quadrature_degree)
     a0 = fem.Function(V, name="fibres")
     if representation == "P1":
-        _project(vector, a0)
+        _project(vector, a0, linear_solver)
     else:
         a0.interpolate(fem.Expression(vector, V.element.interpolation_points))
     return normalize_fibres(a0)
 
 
-_projections = 0
-
-
-def _project(expr: ufl.core.expr.Expr, target: fem.Function) -> None:
-    """L2 projection with a private PETSc prefix (direct solve)."""
+def _project(expr: ufl.core.expr.Expr, target: fem.Function, linear_solver: LinearSolver | None = None) -> None:
+    """:math:`L^2` projection of ``expr`` onto ``target``'s space (one linear-solver configuration, fresh prefix)."""
     from dolfinx.fem.petsc import LinearProblem
 
-    global _projections
-    _projections += 1
+    solver = LinearSolver() if linear_solver is None else linear_solver
     V = target.function_space
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     problem = LinearProblem(
         ufl.inner(u, v) * ufl.dx,
         ufl.inner(expr, v) * ufl.dx,
         u=target,
-        petsc_options_prefix=f"hyperfem_fibre_projection_{_projections}_",
-        petsc_options={"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"},
+        petsc_options_prefix=unique_prefix("fibre_projection"),
+        petsc_options=dict(solver.options),
     )
     problem.solve()
+    check_linear_solve(problem, "fibre projection")
+
+
+def check_linear_solve(problem, what: str) -> None:
+    """Raise :class:`~hyperfem.errors.SolverError` unless the KSP of a DOLFINx ``LinearProblem`` converged."""
+    reason = int(problem.solver.getConvergedReason())
+    if reason <= 0:
+        raise SolverError(f"{what}: the linear solve failed (KSP reason {reason})")

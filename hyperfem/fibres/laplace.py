@@ -13,21 +13,19 @@ the shape in between, as rule-based fibre methods do.
 
 from __future__ import annotations
 
-import itertools
-
-import numpy as np
 import ufl
 from dolfinx import fem
 
-from hyperfem.fibres.fields import fibres_from_expression
+from hyperfem.fibres.fields import check_linear_solve, fibres_from_expression
 from hyperfem.mesh.domain import Domain
+from hyperfem.solver.linear import LinearSolver, unique_prefix
 
 __all__ = ["laplace_fibres", "laplace_potential"]
 
-_counter = itertools.count()
 
-
-def laplace_potential(domain: Domain, source: str, target: str, degree: int = 2) -> fem.Function:
+def laplace_potential(
+    domain: Domain, source: str, target: str, degree: int = 2, linear_solver: LinearSolver | None = None
+) -> fem.Function:
     r"""The potential :math:`\phi` with :math:`\phi = 0` on ``source`` and 1 on ``target``.
 
     Args:
@@ -35,8 +33,12 @@ def laplace_potential(domain: Domain, source: str, target: str, degree: int = 2)
         source: Boundary name where :math:`\phi = 0`.
         target: Boundary name where :math:`\phi = 1`.
         degree: Lagrange degree of :math:`\phi`.
+        linear_solver: Linear-solver configuration (default
+            :class:`~hyperfem.solver.linear.LinearSolver`, MUMPS LU).
     """
     from dolfinx.fem.petsc import LinearProblem
+
+    solver = LinearSolver() if linear_solver is None else linear_solver
 
     mesh = domain.mesh
     fdim = domain.tdim - 1
@@ -48,14 +50,16 @@ def laplace_potential(domain: Domain, source: str, target: str, degree: int = 2)
     phi, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     zero = fem.Constant(mesh, 0.0)
     solution = fem.Function(V, name="laplace_potential")
-    LinearProblem(
+    problem = LinearProblem(
         ufl.inner(ufl.grad(phi), ufl.grad(v)) * ufl.dx,
         zero * v * ufl.dx,
         u=solution,
         bcs=bcs,
-        petsc_options_prefix=f"hyperfem_laplace_{next(_counter)}_",
-        petsc_options={"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"},
-    ).solve()
+        petsc_options_prefix=unique_prefix("laplace"),
+        petsc_options=dict(solver.options),
+    )
+    problem.solve()
+    check_linear_solve(problem, f"laplace_potential from {source!r} to {target!r}")
     solution.x.scatter_forward()
     return solution
 
@@ -67,6 +71,7 @@ def laplace_fibres(
     representation: str = "DG0",
     quadrature_degree: int = 1,
     degree: int = 2,
+    linear_solver: LinearSolver | None = None,
 ) -> fem.Function:
     """Unit fibres :math:`\\nabla\\phi/|\\nabla\\phi|` of :func:`laplace_potential`.
 
@@ -76,7 +81,8 @@ def laplace_fibres(
         representation: ``"P1"``, ``"DG0"`` or ``"quadrature"``.
         quadrature_degree: For the quadrature representation.
         degree: Lagrange degree of the potential.
+        linear_solver: Linear-solver configuration of the Laplace solve (and
+            of the projection for ``"P1"``).
     """
-    phi = laplace_potential(domain, source, target, degree)
-    assert np.isfinite(phi.x.array).all()
-    return fibres_from_expression(domain.mesh, ufl.grad(phi), representation, quadrature_degree)
+    phi = laplace_potential(domain, source, target, degree, linear_solver)
+    return fibres_from_expression(domain.mesh, ufl.grad(phi), representation, quadrature_degree, linear_solver)

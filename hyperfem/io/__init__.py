@@ -1,6 +1,6 @@
-"""Input/output: point probes, VTX files, JSON summaries, collective output-folder checks."""
+"""Input/output: point probes, quadrature-point minima, VTX files, JSON summaries, collective output-folder checks."""
 
-from hyperfem.io.probes import PointProbe
+from hyperfem.io.probes import PointProbe, QuadratureMinimum
 from hyperfem.io.results import VTXOutput, ensure_output_dir, on_rank0, write_json
 
-__all__ = ["PointProbe", "VTXOutput", "ensure_output_dir", "on_rank0", "write_json"]
+__all__ = ["PointProbe", "QuadratureMinimum", "VTXOutput", "ensure_output_dir", "on_rank0", "write_json"]

@@ -62,7 +62,7 @@ class CantileverDynamics(CantileverSpec):
 def cantilever_problem(
     case: str, domain, spec: CantileverDynamics | None = None, degree: int = 1
 ) -> tuple[HyperelasticProblem, list[float]]:
-    """Build the hyperelastic problem of one case with time as the load factor.
+    """Build the hyperelastic problem of one case; its time (``set_time``) is the physical time.
 
     Args:
         case: One of :data:`CASES`.

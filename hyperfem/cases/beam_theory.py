@@ -1,4 +1,4 @@
-r"""Analytic first bending frequency of a clamped–free beam (for verification).
+r"""Analytic first bending frequency of a clamped–free beam (verification of the dynamics).
 
 Euler–Bernoulli: :math:`\omega_1 = (\beta_1 L)^2\sqrt{EI/(\rho A L^4)}`,
 :math:`\beta_1 L = 1.8751040687`.
@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from hyperfem.errors import ParameterError
 
 __all__ = ["cowper_shear_coefficient", "euler_bernoulli_cantilever", "timoshenko_cantilever"]
 
@@ -62,31 +64,63 @@ def _determinant(omega, E, G, rho, L, A, Iy, kappa) -> float:
 
 
 def timoshenko_cantilever(
-    E: float, nu: float, rho: float, L: float, b: float, h: float, kappa: float | None = None
+    E: float,
+    nu: float,
+    rho: float,
+    L: float,
+    b: float,
+    h: float,
+    kappa: float | None = None,
+    *,
+    bracket: tuple[float, float] = (0.3, 1.05),
+    samples: int = 400,
+    bisections: int = 100,
 ) -> float:
-    """First angular frequency (rad/s) of a clamped–free Timoshenko beam, section b × h.
+    r"""First angular frequency (rad/s) of a clamped–free Timoshenko beam, section b × h.
+
+    The first zero of the frequency determinant is searched on ``samples``
+    equally spaced frequencies in ``bracket`` (multiples of the
+    Euler–Bernoulli frequency :math:`\omega_\text{EB}`: shear deformation and
+    rotary inertia lower the frequency, to 0.90 :math:`\omega_\text{EB}` for
+    the stubby 10 × 4 × 4 beam of seed 003), then refined by ``bisections``
+    halvings of the interval with the first sign change (100 reach the
+    floating-point resolution of the frequency).
 
     Args:
         E, nu, rho: Young's modulus, Poisson's ratio, density.
         L: Length.
         b, h: Width and height (bending about the width axis).
         kappa: Shear coefficient (default Cowper's for a rectangle).
+        bracket: Search interval as multiples of :math:`\omega_\text{EB}`.
+        samples: Frequencies sampled in the bracket to find the first sign change.
+        bisections: Halvings of the bracketing interval.
+
+    Raises:
+        ParameterError: If the determinant has no sign change in the bracket.
     """
+    lo_factor, hi_factor = bracket
+    if not 0 < lo_factor < hi_factor or samples < 2 or bisections < 0:
+        raise ParameterError(
+            f"timoshenko_cantilever: need 0 < bracket[0] < bracket[1], samples >= 2, bisections >= 0; "
+            f"got {bracket!r}, {samples!r}, {bisections!r}"
+        )
     kappa = cowper_shear_coefficient(nu) if kappa is None else kappa
     G = E / (2 * (1 + nu))
     A, Iy = b * h, b * h**3 / 12.0
     w_eb = euler_bernoulli_cantilever(E, rho, L, b, h)
     f = lambda w: _determinant(w, E, G, rho, L, A, Iy, kappa)  # noqa: E731
-    grid = np.linspace(0.3 * w_eb, 1.05 * w_eb, 400)
+    grid = np.linspace(lo_factor * w_eb, hi_factor * w_eb, samples)
     vals = [f(w) for w in grid]
     for k in range(len(grid) - 1):
         if vals[k] == 0 or vals[k] * vals[k + 1] < 0:
             lo, hi = grid[k], grid[k + 1]
-            for _ in range(100):
+            for _ in range(bisections):
                 mid = 0.5 * (lo + hi)
                 if f(lo) * f(mid) <= 0:
                     hi = mid
                 else:
                     lo = mid
             return 0.5 * (lo + hi)
-    raise RuntimeError("timoshenko_cantilever: no root below 1.05 x the Euler-Bernoulli frequency")
+    raise ParameterError(
+        f"timoshenko_cantilever: no root between {lo_factor:g} and {hi_factor:g} x the Euler-Bernoulli frequency"
+    )
