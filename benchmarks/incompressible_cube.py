@@ -22,12 +22,11 @@ import time  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402, I001  (before dolfinx/petsc4py)
 
-import numpy as np  # noqa: E402
 import ufl  # noqa: E402
 from dolfinx import fem  # noqa: E402
-from dolfinx import mesh as dmesh  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
+from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube  # noqa: E402
 from hyperfem.io import PointProbe  # noqa: E402
 from hyperfem.kinematics import isochoric_invariants  # noqa: E402
 from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem  # noqa: E402
@@ -45,23 +44,10 @@ ROWS = [  # (formulation, law, K/mu, cells per side)
 
 def run(formulation: str, law: str, K: float, n: int, predictor: bool) -> dict:
     comm = MPI.COMM_WORLD
-    mesh = dmesh.create_unit_cube(comm, n, n, n)
-    domain = hf.Domain.from_locators(
-        mesh,
-        {
-            "x0": lambda x: np.isclose(x[0], 0.0),
-            "x1": lambda x: np.isclose(x[0], 1.0),
-            "y0": lambda x: np.isclose(x[1], 0.0),
-            "z0": lambda x: np.isclose(x[2], 0.0),
-        },
-    )
+    domain = unit_cube(n, comm)
+    mesh = domain.mesh
     material = SplitEnergy(lambda F: 0.5 * (isochoric_invariants(F)[0] - 3.0), K, law)
-    bcs = [
-        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
-        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
-        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
-        hf.PrescribedDisplacement("x1", [1.0], components=[0]),
-    ]
+    bcs = uniaxial_rollers(2.0)
     problem = solid_problem(domain, material, bcs=bcs, formulation=formulation)
     reaction = ReactionForce(problem, "x1")
     start = time.perf_counter()

@@ -465,17 +465,18 @@ def test_write_json_and_vtx_to_unwritable_folder():
         VTXOutput(MPI.COMM_WORLD, UNWRITABLE / "u.bp", [problem.u])
 
 
-def test_driver_checks_output_folder_before_solving():
-    from hyperfem.driver import run_quasistatic
+def test_simulation_checks_output_folder_before_solving():
+    from hyperfem.simulation import JSONSummary, Simulation
 
     domain = _small_domain()
     problem = hf.HyperelasticProblem(
         domain, _psi, bcs=[hf.Clamp("left")], loads=[hf.DeadTraction("right", (0.0, 0.0, -1e3))]
     )
     solver = hf.NewtonSolver(problem)
+    simulation = Simulation(problem, solver, hf.LoadStepping(), [JSONSummary(UNWRITABLE / "box.json")], name="box")
     with pytest.raises(OutputError, match=rf"output folder {UNWRITABLE} cannot be created or written"):
-        run_quasistatic(solver, "box", UNWRITABLE)
-    assert problem.load_factor == 0.0  # nothing was solved
+        simulation.run()
+    assert problem.time == 0.0  # nothing was solved
 
 
 def _load_demo(name: str):
@@ -664,7 +665,6 @@ def test_gmsh_build_failure_on_rank0_reaches_every_rank():
 # The rest of the public API
 # --------------------------------------------------------------------------
 def test_point_probe_bad_points():
-    from hyperfem.dynamics import PointProbe as DynamicsProbe
     from hyperfem.io import PointProbe
 
     mesh = _small_domain().mesh
@@ -674,10 +674,8 @@ def test_point_probe_bad_points():
         PointProbe(mesh, [(0.5, 0.1, 0.1, 0.0)])
     with pytest.raises(ParameterError, match="outside the mesh"):
         PointProbe(mesh, [(5.0, 0.1, 0.1)])
-    with pytest.raises(ParameterError, match="outside the mesh"):
-        DynamicsProbe(mesh, [(5.0, 0.1, 0.1)])
     with pytest.raises(ParameterError, match="must be finite"):
-        DynamicsProbe(mesh, [(INF, 0.1, 0.1)])
+        PointProbe(mesh, [(INF, 0.1, 0.1)])
 
 
 @pytest.mark.parametrize(

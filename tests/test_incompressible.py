@@ -52,9 +52,9 @@ from petsc4py import PETSc
 
 import dolfinx.fem.petsc as fpetsc
 from dolfinx import fem
-from dolfinx import mesh as dmesh
 
 import hyperfem as hf
+from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 from hyperfem.kinematics import isochoric_invariants
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
 from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem
@@ -71,26 +71,8 @@ DU = {
 }
 
 
-def _cube(n: int) -> hf.Domain:
-    mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, n, n, n)
-    return hf.Domain.from_locators(
-        mesh,
-        {
-            "x0": lambda x: np.isclose(x[0], 0.0),
-            "x1": lambda x: np.isclose(x[0], 1.0),
-            "y0": lambda x: np.isclose(x[1], 0.0),
-            "z0": lambda x: np.isclose(x[2], 0.0),
-        },
-    )
-
-
-def _rollers(lam: float) -> list:
-    return [
-        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
-        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
-        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
-        hf.PrescribedDisplacement("x1", [lam - 1.0], components=[0]),
-    ]
+_cube = unit_cube
+_rollers = uniaxial_rollers
 
 
 def _material(K: float, law: str) -> SplitEnergy:

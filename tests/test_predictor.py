@@ -17,11 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mpi4py import MPI
 
-from dolfinx import mesh as dmesh
 
 import hyperfem as hf
+from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 from hyperfem.cases import CantileverSpec
 from hyperfem.dynamics.motion import Ramp, rotating_surface
 from hyperfem.kinematics import isochoric_invariants
@@ -30,26 +29,8 @@ from hyperfem.problem import SplitEnergy, solid_problem
 MESHES = Path(__file__).resolve().parent.parent / "meshes"
 
 
-def _cube(n: int):
-    mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, n, n, n)
-    return hf.Domain.from_locators(
-        mesh,
-        {
-            "x0": lambda x: np.isclose(x[0], 0.0),
-            "x1": lambda x: np.isclose(x[0], 1.0),
-            "y0": lambda x: np.isclose(x[1], 0.0),
-            "z0": lambda x: np.isclose(x[2], 0.0),
-        },
-    )
-
-
-def _rollers(stretch: float):
-    return [
-        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
-        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
-        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
-        hf.PrescribedDisplacement("x1", [stretch - 1.0], components=[0]),
-    ]
+_cube = unit_cube
+_rollers = uniaxial_rollers
 
 
 @pytest.mark.parametrize("stretch", [2.0, 0.5])

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from hyperfem.errors import ParameterError
 
-__all__ = ["LameParameters", "check_positive", "is_finite_number"]
+__all__ = ["LameParameters", "check_nonnegative", "check_positive", "is_finite_number"]
 
 
 def is_finite_number(value) -> bool:
@@ -27,6 +27,12 @@ def check_positive(name: str, value: float, where: str) -> None:
     """Raise :class:`ParameterError` unless ``value`` is a finite number > 0 (rejects nan and inf)."""
     if not (is_finite_number(value) and value > 0):
         raise ParameterError(f"{where}: {name} must be a finite number > 0, got {value!r}")
+
+
+def check_nonnegative(name: str, value: float, where: str) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is a finite number >= 0 (rejects nan and inf)."""
+    if not (is_finite_number(value) and value >= 0):
+        raise ParameterError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
 
 
 @dataclass(frozen=True)

@@ -1,15 +1,41 @@
-"""Nonlinear solution: Newton (PETSc SNES) and quasi-static load stepping."""
+"""Nonlinear solution: Newton (PETSc SNES), the linear-solver layer, and the one stepper.
 
+* :mod:`~hyperfem.solver.newton` — :class:`NewtonSolver` (energy line search,
+  inversion guard, boundary-increment predictor, round-off stop);
+* :mod:`~hyperfem.solver.linear` — :class:`LinearSolver` and the automatic choice
+  (MUMPS LU, or CG/GMRES + GAMG with rigid-body modes);
+* :mod:`~hyperfem.solver.constraints` — do the Dirichlet conditions fix every rigid motion;
+* :mod:`~hyperfem.solver.stepping` — :class:`StepPolicy` acting on a stage
+  (quasi-static or dynamic), :func:`solve_quasistatic`.
+"""
+
+from hyperfem.solver.linear import LinearSolver, choose_linear_solver
 from hyperfem.solver.newton import DEFAULT_PETSC_OPTIONS, ROUNDOFF_FACTOR, NewtonSolver, RoundoffWarning, SolveRecord
-from hyperfem.solver.stepping import LoadStepping, StepRecord, solve_quasistatic
+from hyperfem.solver.stepping import (
+    DynamicStage,
+    LoadStepping,
+    QuasiStaticStage,
+    Stage,
+    StepPolicy,
+    StepRecord,
+    run_steps,
+    solve_quasistatic,
+)
 
 __all__ = [
     "DEFAULT_PETSC_OPTIONS",
+    "DynamicStage",
+    "LinearSolver",
     "LoadStepping",
     "NewtonSolver",
+    "QuasiStaticStage",
     "ROUNDOFF_FACTOR",
     "RoundoffWarning",
     "SolveRecord",
+    "Stage",
+    "StepPolicy",
     "StepRecord",
+    "choose_linear_solver",
+    "run_steps",
     "solve_quasistatic",
 ]

@@ -58,6 +58,7 @@ from dolfinx import fem
 from dolfinx.la.petsc import _ghost_update
 
 from hyperfem.errors import ConvergenceError, ParameterError, SolverError
+from hyperfem.io.probes import QuadratureMinimum
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
 from hyperfem.solver.linear import DIRECT, LinearSolver, choose_linear_solver, describe, unique_prefix
@@ -278,10 +279,7 @@ class NewtonSolver:
         self.min_jacobian = min_jacobian
         self._work = self._nlp.x.duplicate()
         self._residual_work = self._nlp.b.duplicate()
-        self._J_expr = fem.Expression(problem.volume_jacobian(), problem.quadrature_points())
-        mesh = problem.domain.mesh
-        imap = mesh.topology.index_map(mesh.topology.dim)
-        self._cells = np.arange(imap.size_local, dtype=np.int32)
+        self._min_J = QuadratureMinimum(problem.domain.mesh, problem.volume_jacobian(), problem.quadrature_points())
         self.inversion_cutbacks = 0
         if min_jacobian is not None:
             snes.setLineSearchPreCheck(lambda x, y: me()._guarded(me()._precheck, x, y))
@@ -433,9 +431,7 @@ class NewtonSolver:
 
     def min_J(self) -> float:
         """Smallest :math:`J` over all quadrature points at the current state."""
-        vals = self._J_expr.eval(self.problem.domain.mesh, self._cells)
-        local = float(vals.min()) if vals.size else np.inf
-        return self.comm.allreduce(local, op=MPI.MIN)
+        return self._min_J()
 
     def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         # SNES line searches try x - lambda*y with lambda <= 1: shorten y until
