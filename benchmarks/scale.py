@@ -7,6 +7,8 @@ For each size it runs, each in a fresh process (clean peak memory), on 1 and
 
 * ``hyperfem``: :class:`~hyperfem.NewtonSolver` with its automatic linear
   solver (MUMPS below the threshold, CG + GAMG with rigid-body modes above);
+* ``hyperfem-iterative`` / ``hyperfem-direct``: the same with the linear
+  solver forced (to measure the crossover of the automatic choice);
 * ``baseline``: the best plain-DOLFINx set-up, ``NonlinearProblem`` with SNES
   ``newtonls``/``basic`` (full Newton steps) and MUMPS LU, skipped above
   ``--max-lu`` unknowns (memory).
@@ -75,12 +77,16 @@ def single(args) -> None:
     load = bend_load() if args.case == "bend" else twist_load()
     row = {"variant": args.variant, "case": args.case, "N": args.N, "degree": args.degree, "ranks": comm.size}
     t0 = time.perf_counter()
-    if args.variant == "hyperfem":
+    if args.variant.startswith("hyperfem"):
+        from hyperfem.solver.linear import choose_linear_solver
+
         problem = hf.HyperelasticProblem(
             domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[load],
             degree=args.degree,
         )
-        solver = hf.NewtonSolver(problem)
+        forced = {"hyperfem-iterative": 0, "hyperfem-direct": 2**62}.get(args.variant)
+        linear = None if forced is None else choose_linear_solver(problem, threshold=forced)
+        solver = hf.NewtonSolver(problem, linear_solver=linear)
         problem.set_load_factor(1.0)
         setup = time.perf_counter() - t0
         before = _events()
@@ -175,6 +181,11 @@ def main() -> None:
     p.add_argument("--output", type=Path, default=None, help="append JSON lines here")
     p.add_argument("--plot", type=Path, default=None, help="PNG of time and memory vs unknowns")
     p.add_argument("--smoke", action="store_true", help="two tiny sizes, 1 rank (for the test suite)")
+    p.add_argument(
+        "--variants", nargs="+", default=["hyperfem", "baseline"],
+        choices=["hyperfem", "hyperfem-iterative", "hyperfem-direct", "baseline"],
+        help="hyperfem (automatic linear solver), with the iterative or direct solver forced, plain DOLFINx",
+    )
     p.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--variant", default="hyperfem", help=argparse.SUPPRESS)
     args = p.parse_args()
@@ -187,7 +198,7 @@ def main() -> None:
     rows = []
     for N in args.sizes:
         for ranks in args.ranks:
-            for variant in ("hyperfem", "baseline"):
+            for variant in args.variants:
                 approx = 3 * (2 * N * args.degree + 1) * (N * args.degree + 1) ** 2
                 if variant == "baseline" and approx > args.max_lu:
                     continue

@@ -213,6 +213,10 @@ class Simulation:
             "error_estimate": float("nan") if record is None else record.error,
             "min_J": solve.min_J if solve is not None else self.solver.min_J(),
             "reason": solve.reason_name if solve is not None else "",
+            "krylov_iterations": sum(r.linear_iterations for r in record.solve_records) if record is not None
+            else (solve.linear_iterations if solve else 0),
+            "pc_setup_time": sum(r.pc_setup_time for r in record.solve_records) if record is not None
+            else (solve.pc_setup_time if solve else 0.0),
             **(solve.indicators if solve is not None else {}),
         }
         for output in self.outputs:
@@ -244,9 +248,12 @@ class Simulation:
             "degree": base.degree,
             "petsc_options": {k: str(v) for k, v in self.solver.options.items()},
             "energy_line_search": self.solver.energy_line_search,
+            "linear_solver": self.solver.linear_solver_name,
             "steps": len(self.steps),
             "newton_iterations": its,
             "total_newton_iterations": int(sum(its)),
+            "total_krylov_iterations": int(sum(r.get("krylov_iterations", 0) for r in self.rows)),
+            "pc_setup_time": float(sum(r.get("pc_setup_time", 0.0) for r in self.rows)),
             "rejected": int(sum(r.rejected for r in self.steps)),
             "solves": int(sum(r.solves for r in self.steps)),
             "wall_time": self.wall_time,

@@ -74,12 +74,14 @@ SYMMETRIC_ITERATIVE: dict[str, object] = {"ksp_type": "cg", **_AMG}
 NONSYMMETRIC_ITERATIVE: dict[str, object] = {"ksp_type": "gmres", "ksp_gmres_restart": 100, **_AMG}
 """GMRES + AMG for the non-symmetric tangents of follower loads."""
 
-DIRECT_THRESHOLD = 30_000
+DIRECT_THRESHOLD = 10_000
 """Unknowns from which a displacement problem is solved iteratively.
 
-Measured (``benchmarks/scale.py``, bend, P1, this 2-core machine): the
-iterative solve is faster from about 10^4 unknowns on, and its advantage grows
-like n^0.6; below, LU is as fast and needs no tuning."""
+Measured (``benchmarks/scale.py --variants hyperfem-iterative hyperfem-direct``,
+bend, P1, this 2-core machine, serial): CG + GAMG vs MUMPS 0.42 / 0.46 s at
+4.1k unknowns, 0.83 / 1.01 s at 7.6k, 1.32 / 2.33 s at 12.7k, 2.8-3.9 / 7.7 s
+at 28.6k. Below 10^4 LU is as fast and more robust (indefinite tangents do
+not stop it), so small problems keep it."""
 
 _counter = itertools.count()
 
