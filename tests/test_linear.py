@@ -122,3 +122,19 @@ def test_iterative_prescribed_displacement_with_predictor():
         assert steps[0].solve.predictor
         results.append(problem.u.x.array.copy())
     np.testing.assert_allclose(results[1], results[0], atol=1e-9)
+
+
+def test_iterative_equals_direct_dynamic_step():
+    """A Newmark step (mass-augmented tangent, CG + GAMG) equals the MUMPS step."""
+    from hyperfem import dynamics as dyn
+
+    results = []
+    for threshold in (10**12, 0):
+        base = _beam(bend_load())
+        problem = dyn.IncrementalProblem(base, dyn.Newmark(), dyn.MassDensity(CantileverSpec().rho))
+        assert choose_linear_solver(problem, threshold=0).options["ksp_type"] == "cg"
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, threshold=threshold))
+        problem.initial_acceleration()
+        dyn.integrate(problem, solver, dyn.TimeStepping(dt=0.05, t_end=0.1, adaptive=False))
+        results.append(problem.u.x.array.copy())
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-10 * np.abs(results[0]).max())
