@@ -137,4 +137,5 @@ def test_iterative_equals_direct_dynamic_step():
         problem.initial_acceleration()
         dyn.integrate(problem, solver, dyn.TimeStepping(dt=0.05, t_end=0.1, adaptive=False))
         results.append(problem.u.x.array.copy())
-    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-10 * np.abs(results[0]).max())
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-9 * scale)  # measured 7e-12 * scale
