@@ -73,6 +73,7 @@ demos: bootstrap
 	$(PY) demos/twist.py
 	$(PY) demos/muscle.py
 	$(PY) demos/dynamics.py --case bend --t-end 0.5
+	$(PY) demos/muscle_dynamics.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
