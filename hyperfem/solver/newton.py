@@ -179,6 +179,14 @@ class NewtonSolver:
         check_rigid_motion: Refuse Dirichlet conditions that leave a
             rigid-body motion free (the tangent is singular). Problems with
             ``rigid_motion_resisted`` (inertia) are not checked.
+        jacobian: A UFL form to use as the tangent instead of
+            ``problem.jacobian`` (e.g. a PSD-projected tangent); the
+            residual is unchanged.
+        state_hooks: Callables ``hook()`` run whenever the solver has moved
+            ``problem.u`` to a new state and before it assembles a residual,
+            tangent or energy there (e.g. to refresh quadrature fields such
+            as polar rotations or projected tangent moduli). The problem's
+            own ``state_hooks`` attribute, if any, runs first.
         linear_solver: The linear-solver configuration of the tangent solves
             (default: :func:`~hyperfem.solver.linear.choose_linear_solver`:
             MUMPS LU for small and mixed problems, AMG-preconditioned CG/GMRES
@@ -204,6 +212,8 @@ class NewtonSolver:
         roundoff_factor: float = ROUNDOFF_FACTOR,
         check_rigid_motion: bool = True,
         linear_solver: LinearSolver | None = None,
+        jacobian=None,
+        state_hooks=(),
         form_compiler_options: dict | None = None,
         jit_options: dict | None = None,
     ):
@@ -235,7 +245,7 @@ class NewtonSolver:
                 problem.residual,
                 problem.u,
                 bcs=problem.bcs,
-                J=problem.jacobian,
+                J=problem.jacobian if jacobian is None else jacobian,
                 petsc_options_prefix=prefix,
                 petsc_options=self.options,
                 form_compiler_options=form_compiler_options,
@@ -246,6 +256,7 @@ class NewtonSolver:
             raise ParameterError(f"NewtonSolver: {self._describe_option_error(exc, petsc_options or {})}") from None
         snes = self._nlp.solver
         self.snes = snes
+        self.state_hooks = [*getattr(problem, "state_hooks", ()), *state_hooks]
         PETSc.Log.begin()  # for the preconditioner set-up time of each solve (PCSetUp event)
         self._pc_setup = PETSc.Log.Event("PCSetUp")
         self.linear_solver_name = describe(self.options)
@@ -258,6 +269,8 @@ class NewtonSolver:
         # (leaking the factorisation), or frees at different times per rank.
         me = weakref.ref(self)
         snes.setMonitor(lambda _snes, _it, norm: me()._norms.append(float(norm)))
+        if self.state_hooks:
+            self._wrap_assembly(me)
 
         if energy_line_search is None:
             energy_line_search = problem.conservative
@@ -323,9 +336,33 @@ class NewtonSolver:
             raise
 
     # -- callbacks -------------------------------------------------------
-    def _set_state(self, x: PETSc.Vec) -> None:
+    def _wrap_assembly(self, me) -> None:
+        """Run the state hooks before DOLFINx assembles the residual and the tangent."""
+        snes = self.snes
+        b, (residual, _, residual_kw) = snes.getFunction()
+        _, _, (jacobian, _, jacobian_kw) = snes.getJacobian()
+
+        def hooked_residual(snes_, x, b_):
+            me()._guarded(me()._set_state, x)
+            residual(snes_, x, b_, **residual_kw)
+
+        def hooked_jacobian(snes_, x, A, P):
+            me()._guarded(me()._set_state, x)
+            jacobian(snes_, x, A, P, **jacobian_kw)
+
+        snes.setFunction(hooked_residual, b)
+        snes.setJacobian(hooked_jacobian, self._nlp.A, self._nlp.P_mat)
+
+    def refresh(self) -> None:
+        """Run the state hooks at the current ``problem.u``."""
+        for hook in self.state_hooks:
+            hook()
+
+    def _set_state(self, x: PETSc.Vec, hooks: bool = True) -> None:
         _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
         fpetsc.assign(x, self.problem.u)
+        if hooks:
+            self.refresh()
 
     def _energies(self) -> tuple[float, float]:
         a = fem.assemble_scalar(self._energy_forms[0])
@@ -335,6 +372,7 @@ class NewtonSolver:
 
     def energy(self) -> float:
         """Total potential :math:`\\Pi` at the current displacement."""
+        self.refresh()
         a, b = self._energies()
         return a - b
 
@@ -438,7 +476,7 @@ class NewtonSolver:
         # the full step keeps every quadrature point above min_jacobian.
         for _ in range(MAX_INVERSION_HALVINGS):
             self._work.waxpy(-1.0, y, x)
-            self._set_state(self._work)
+            self._set_state(self._work, hooks=False)
             if self.min_J() > self.min_jacobian:
                 break
             y.scale(0.5)
@@ -448,7 +486,7 @@ class NewtonSolver:
             # (DIVERGED_FUNCTION_DOMAIN, a failed solve the stepper cuts back) and say why.
             self._inversion_giveup = True
             self.snes.setFunctionDomainError()
-        self._set_state(x)
+        self._set_state(x, hooks=False)
 
     # -- predictor -------------------------------------------------------
     def _boundary_moved(self) -> bool:
@@ -472,6 +510,7 @@ class NewtonSolver:
         bcs = self.problem.bcs
         x = self._work
         self.problem.u.x.petsc_vec.copy(x)
+        self.refresh()
         A = nlp.A
         A.zeroEntries()
         fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)
@@ -491,7 +530,7 @@ class NewtonSolver:
         if ok:
             scale = 1.0
             for _ in range(8):
-                self._set_state(x)
+                self._set_state(x, hooks=False)
                 self.problem.u.x.petsc_vec.axpy(scale, du)
                 self.problem.u.x.scatter_forward()
                 if self.min_jacobian is None or self.min_J() > self.min_jacobian:
@@ -499,7 +538,7 @@ class NewtonSolver:
                     break
                 scale *= 0.5
             if not applied:
-                self._set_state(x)
+                self._set_state(x, hooks=False)
         du.destroy()
         return applied
 
