@@ -74,7 +74,7 @@ def test_failure_names_time_and_keeps_history():
 def test_inversion_precheck_refuses_inverting_steps():
     """A Newton direction that would invert every element is shortened until J > 0."""
     problem = _bend()
-    solver = hf.NewtonSolver(problem)
+    solver = hf.NewtonSolver(problem, step_filter="bisection")
     x = solver._nlp.x
     x.set(0.0)
     # Trial state x - y = -2 X: F = -I, J = -1 everywhere.

@@ -246,6 +246,7 @@ class IncrementalProblem:
         self.energy_external = external
         self.follower_residual = follower
         self.conservative = base.conservative
+        self.invertible = getattr(base, "invertible", False)
         self.residual = ufl.derivative(internal - external, u, ufl.TestFunction(V))
         if follower is not None:
             self.residual = self.residual + follower

@@ -9,3 +9,7 @@ __all__ = ["BEAM_GROUPS", "Domain", "beam_mesh", "read_mesh", "write_beam_mesh"]
 from hyperfem.mesh.fusiform import FUSIFORM_GROUPS, FusiformGeometry, fusiform_mesh, write_fusiform_mesh  # noqa: E402
 
 __all__ += ["FUSIFORM_GROUPS", "FusiformGeometry", "fusiform_mesh", "write_fusiform_mesh"]
+
+from hyperfem.mesh.quality import MeshQuality, MeshQualityWarning, mesh_quality, quality_report  # noqa: E402
+
+__all__ += ["MeshQuality", "MeshQualityWarning", "mesh_quality", "quality_report"]

@@ -39,3 +39,10 @@ __all__ = [
     "run_steps",
     "solve_quasistatic",
 ]
+
+from hyperfem.solver.step_filter import StepFilter, exact_filter_applies  # noqa: E402
+
+__all__ += ["StepFilter", "exact_filter_applies"]
+from hyperfem.solver.projected import ProjectedTangent, projected_newton_solver  # noqa: E402
+
+__all__ += ["ProjectedTangent", "projected_newton_solver"]
