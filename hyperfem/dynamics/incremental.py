@@ -180,6 +180,7 @@ class IncrementalProblem:
         self.linear_solver = LinearSolver() if linear_solver is None else linear_solver
         # Inertia makes the tangent regular without Dirichlet conditions.
         self.rigid_motion_resisted = bool(integrator.dynamic) or base.rigid_motion_resisted
+        self.state_hooks = tuple(getattr(base, "state_hooks", ()))
         self.domain = base.domain
         self.degree = base.degree
         self.quadrature_degree = base.quadrature_degree
@@ -246,11 +247,22 @@ class IncrementalProblem:
         self.energy_external = external
         self.follower_residual = follower
         self.conservative = base.conservative
-        self.invertible = getattr(base, "invertible", False)
+        self.invertible = bool(getattr(base, "invertible", False))
         self.residual = ufl.derivative(internal - external, u, ufl.TestFunction(V))
         if follower is not None:
             self.residual = self.residual + follower
         self.jacobian = ufl.derivative(self.residual, u, ufl.TrialFunction(V))
+        correction = getattr(base, "tangent_correction", None)
+        if correction is not None:
+            # Tangent-only term of a material whose stress is exact with a frozen field
+            # (fixed-corotated, ARAP: dR/dF); never part of the energy or the residual.
+            if af:
+                correction = scale * ufl.replace(correction, {u: u_alpha})
+            if md is not None:
+                correction = unify_cell_quadrature(correction, md)
+            self.jacobian = self.jacobian + ufl.derivative(
+                ufl.derivative(correction, u, ufl.TestFunction(V)), u, ufl.TrialFunction(V)
+            )
 
         # Diagnostics forms at the current state.
         self._kinetic = (

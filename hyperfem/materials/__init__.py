@@ -3,6 +3,11 @@
 Each law lives in its own module as a pure function of the deformation
 gradient; the matching ``*_stress`` function is the closed-form first
 Piola–Kirchhoff stress used only to verify what UFL derives.
+
+Laws that need the polar rotation of :math:`F` (fixed-corotated, ARAP,
+corotational linear) are callable objects holding it in quadrature fields
+(:mod:`~hyperfem.materials.polar`); :mod:`~hyperfem.materials.invertibility`
+says which energies tolerate inverted elements.
 """
 
 from hyperfem.materials.linear_elastic import linear_elastic, linear_elastic_stress
@@ -56,4 +61,62 @@ __all__ += [
     "muscle_stress",
     "transversely_isotropic",
     "volumetric_energy",
+]
+
+from hyperfem.materials.corotated import (  # noqa: E402
+    ARAP,
+    FixedCorotated,
+    PolarRotationEnergy,
+    arap,
+    arap_stress,
+    fixed_corotated,
+    fixed_corotated_stress,
+)
+from hyperfem.materials.corotational import (  # noqa: E402
+    CorotationalLinear,
+    StepRotation,
+    corotational_linear,
+    corotational_linear_energy,
+    corotational_linear_stress,
+)
+from hyperfem.materials.invertibility import invertible, is_invertible, with_parameters  # noqa: E402
+from hyperfem.materials.polar import (  # noqa: E402
+    QuadratureField,
+    RotationField,
+    polar_decomposition,
+    polar_rotation,
+    polar_svd,
+    rotation_derivative,
+)
+from hyperfem.materials.stable_neo_hookean import (  # noqa: E402
+    StableNeoHookeanParameters,
+    stable_neo_hookean,
+    stable_neo_hookean_stress,
+)
+
+__all__ += [
+    "ARAP",
+    "CorotationalLinear",
+    "FixedCorotated",
+    "PolarRotationEnergy",
+    "QuadratureField",
+    "RotationField",
+    "StableNeoHookeanParameters",
+    "StepRotation",
+    "arap",
+    "arap_stress",
+    "corotational_linear",
+    "corotational_linear_energy",
+    "corotational_linear_stress",
+    "fixed_corotated",
+    "fixed_corotated_stress",
+    "invertible",
+    "is_invertible",
+    "polar_decomposition",
+    "polar_rotation",
+    "polar_svd",
+    "rotation_derivative",
+    "stable_neo_hookean",
+    "stable_neo_hookean_stress",
+    "with_parameters",
 ]

@@ -11,6 +11,15 @@ with ``ufl.derivative``; :meth:`set_time` moves loads, prescribed
 displacements and any *updaters* (e.g. muscle activation) to time ``t`` (the
 load factor of a quasi-static ramp, or physical time). :class:`EnergyProblem`
 meets :class:`~hyperfem.problem.protocol.SolidProblem`.
+
+A subclass may pass a *tangent correction*: a form :math:`C` whose second
+variation is added to the tangent only,
+:math:`K \mathrel{+}= \partial^2 C/\partial w^2[v, \delta w]` (the
+:math:`\partial R/\partial F` term of energies with a polar rotation held
+in a quadrature field, :mod:`hyperfem.materials.corotated`). Two more
+attributes tell the solver about the materials: ``invertible`` (the energy is
+finite and restoring for :math:`J \le 0`, so no inversion guard is needed)
+and ``state_hooks`` (callables to run at every new state before assembly).
 """
 
 from __future__ import annotations
@@ -38,6 +47,15 @@ class EnergyProblem:
     rigid_motion_resisted = False
     """Static problems need Dirichlet conditions that fix every rigid-body motion."""
 
+    invertible = False
+    """Whether every energy is finite and restoring for :math:`J \\le 0` (the solver may drop its inversion guard)."""
+
+    state_hooks: tuple = ()
+    """Callables ``hook()`` the solver runs at every new state before assembling (e.g. polar-rotation refreshes)."""
+
+    tangent_correction: ufl.Form | None = None
+    """Form whose second variation was added to :attr:`jacobian` only (``None``: the plain derivative)."""
+
     def _derive_forms(
         self,
         displacement,
@@ -47,6 +65,7 @@ class EnergyProblem:
         loads: Sequence[Load],
         conservative: bool | None = None,
         updaters: Iterable = (),
+        tangent_correction: ufl.Form | None = None,
     ) -> None:
         md = {"quadrature_degree": self.quadrature_degree}
         domain = self.domain
@@ -56,8 +75,8 @@ class EnergyProblem:
         zero = fem.Constant(domain.mesh, 0.0) * ufl.dot(displacement, displacement) * domain.dx(metadata=md)
         external = self._loads.external if self._loads.external is not None else zero
         # One rule per integral type across energy, loads and follower terms (FFCx 0.11).
-        self.energy_internal, self.energy_external, self.follower_residual = unify_quadrature(
-            self.energy_internal, external, self._loads.follower
+        self.energy_internal, self.energy_external, self.follower_residual, tangent_correction = unify_quadrature(
+            self.energy_internal, external, self._loads.follower, tangent_correction
         )
         self.conservative = (self.follower_residual is None) if conservative is None else conservative
         self.energy = self.energy_internal - self.energy_external
@@ -65,6 +84,11 @@ class EnergyProblem:
         if self.follower_residual is not None:
             self.residual = self.residual + self.follower_residual
         self.jacobian = ufl.derivative(self.residual, self.u, trial)
+        self.tangent_correction = tangent_correction
+        if tangent_correction is not None:
+            self.jacobian = self.jacobian + ufl.derivative(
+                ufl.derivative(tangent_correction, self.u, test), self.u, trial
+            )
         self._time = 0.0
         self.set_time(0.0)
 

@@ -11,6 +11,23 @@ follower loads, :class:`HyperelasticProblem` builds (once)
 with both derivatives taken by ``ufl.derivative``. Loads are
 :class:`dolfinx.fem.Constant` magnitudes set by :meth:`set_load_factor`; the
 forms never need recompiling.
+
+Energies are callables ``psi(F)``. An energy object may also carry (all
+optional, read with ``getattr``):
+
+* ``invertible`` — finite and restoring for :math:`J \le 0`
+  (:mod:`hyperfem.materials.invertibility`); the problem is
+  ``invertible`` when every region's energy is;
+* ``bind(F, quadrature_degree)`` — called before ``psi(F)`` with the
+  problem's :math:`F` and volume rule (energies with quadrature fields);
+  ``quadrature_rule_degree`` — the rule such fields need (``None``: any);
+* ``state_hooks`` — callables collected into :attr:`state_hooks`, which
+  :class:`~hyperfem.solver.NewtonSolver` runs at every new state before
+  assembly (e.g. the polar-rotation refresh of fixed-corotated/ARAP);
+* ``updaters`` — objects with ``update(t)`` added to the problem's updaters
+  (e.g. the step rotation of corotational linear elasticity);
+* ``tangent_correction(F)`` — a pseudo-energy whose second variation is
+  added to the tangent only (the :math:`\partial R/\partial F` term).
 """
 
 from __future__ import annotations
@@ -23,6 +40,7 @@ from dolfinx import fem
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import deformation_gradient
+from hyperfem.materials.invertibility import is_invertible
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.base import EnergyProblem
@@ -64,7 +82,11 @@ class HyperelasticProblem(EnergyProblem):
         quadrature_degree: Quadrature degree; default from
             :func:`default_quadrature_degree`.
         updaters: Objects with ``update(t)`` that :meth:`set_time` calls
-            (e.g. :class:`~hyperfem.activation.Activation`).
+            (e.g. :class:`~hyperfem.activation.Activation`); the energies'
+            own ``updaters`` are added (each once).
+        invertible: Whether the energies tolerate :math:`J \\le 0` (the solver
+            may then drop its inversion guard); ``None``: inferred, ``True``
+            when every region's energy is marked invertible.
 
     Attributes:
         u: The displacement :class:`dolfinx.fem.Function`.
@@ -74,6 +96,9 @@ class HyperelasticProblem(EnergyProblem):
         residual, jacobian: UFL forms passed to the solver.
         conservative: ``True`` when every load derives from :math:`\\Pi`, so the
             line search can use the energy as its merit function.
+        invertible: See the argument.
+        state_hooks: The energies' state hooks (module docstring), for the solver.
+        tangent_correction: The energies' tangent corrections as a form, or ``None``.
     """
 
     def __init__(
@@ -86,6 +111,7 @@ class HyperelasticProblem(EnergyProblem):
         degree: int = 1,
         quadrature_degree: int | None = None,
         updaters: Iterable[Updater] = (),
+        invertible: bool | None = None,
     ):
         where = "HyperelasticProblem"
         if not isinstance(domain, Domain):
@@ -103,6 +129,8 @@ class HyperelasticProblem(EnergyProblem):
             raise ParameterError(
                 f"{where}: quadrature_degree must be an integer >= 1 or None, got {quadrature_degree!r}"
             )
+        if invertible is not None and not isinstance(invertible, bool):
+            raise ParameterError(f"{where}: invertible must be True, False or None, got {invertible!r}")
         bcs = as_sequence(bcs, "bcs", where)
         loads = as_sequence(loads, "loads", where)
         if not (callable(material) or isinstance(material, Mapping)):
@@ -124,17 +152,52 @@ class HyperelasticProblem(EnergyProblem):
 
         # Stored energy, per region.
         if callable(material):
-            psi = scalar_energy(material, self.F, f"{where}, whole domain")
-            self.energy_internal = psi * domain.dx(metadata=md)
+            regions = {None: material}
         else:
             if not material:
                 raise ParameterError(f"{where}: material mapping is empty")
             check_region_coverage(domain, list(material), where)
-            self.energy_internal = sum(
-                scalar_energy(psi, self.F, f"{where}, region {name!r}") * domain.dx(name, metadata=md)
-                for name, psi in material.items()
-            )
+            regions = dict(material)
+        for psi in regions.values():
+            bind = getattr(psi, "bind", None)
+            if callable(bind):
+                bind(self.F, self.quadrature_degree)
+        self.energy_internal = sum(
+            scalar_energy(psi, self.F, f"{where}, " + ("whole domain" if name is None else f"region {name!r}"))
+            * domain.dx(name, metadata=md)
+            for name, psi in regions.items()
+        )
+        materials = list({id(psi): psi for psi in regions.values()}.values())
+        self.invertible = all(is_invertible(psi) for psi in materials) if invertible is None else invertible
+        self.state_hooks = tuple(hook for psi in materials for hook in getattr(psi, "state_hooks", ()))
+        own_updaters = as_sequence(updaters, "updaters", where)
+        for psi in materials:
+            for updater in getattr(psi, "updaters", ()):
+                if not any(updater is other for other in own_updaters):
+                    own_updaters.append(updater)
+        corrections = [
+            (name, psi.tangent_correction(self.F))
+            for name, psi in regions.items()
+            if callable(getattr(psi, "tangent_correction", None))
+        ]
+        corrections = [(name, c) for name, c in corrections if c is not None]
+        correction = (
+            sum(c * domain.dx(name, metadata=md) for name, c in corrections) if corrections else None
+        )
         self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
 
         # Loads: one Constant magnitude each, scaled by its profile.
-        self._derive_forms(self.u, v, v, du, loads, updaters=updaters)
+        self._derive_forms(self.u, v, v, du, loads, updaters=own_updaters, tangent_correction=correction)
+        on_points = [psi for psi in materials if getattr(psi, "quadrature_rule_degree", None) is not None]
+        if on_points:
+            raised = {
+                itg.metadata().get("quadrature_degree")
+                for itg in self.energy_internal.integrals()
+                if itg.integral_type() == "cell"
+            } - {self.quadrature_degree}
+            if raised:
+                raise ParameterError(
+                    f"{where}: the loads raise the volume rule to degree {max(raised)}, but "
+                    f"{type(on_points[0]).__name__} holds fields on the points of degree {self.quadrature_degree}; "
+                    f"pass quadrature_degree={max(raised)}"
+                )

@@ -59,6 +59,11 @@ class SolidProblem(Protocol):
         rigid_motion_resisted: Whether the tangent is regular without Dirichlet
             conditions (inertia); static problems need conditions that fix
             every rigid-body motion.
+        invertible: *Optional* (read it with ``getattr(problem, "invertible", False)``):
+            whether every energy is finite and restoring for :math:`J \\le 0`
+            (:mod:`hyperfem.materials.invertibility`), so the solver may drop
+            its inversion guard. Not a required member, so that problems
+            written before it still meet the protocol.
     """
 
     domain: Domain
