@@ -25,7 +25,13 @@ from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, twist_load
 from hyperfem.io import PointProbe
 from hyperfem.kinematics import isochoric_invariants
 from hyperfem.problem import SplitEnergy, solid_problem
-from hyperfem.solver.linear import DIRECT, DIRECT_THRESHOLD, choose_linear_solver, rigid_body_modes
+from hyperfem.solver.linear import (
+    DIRECT,
+    DIRECT_THRESHOLD,
+    MIXED_DIRECT_THRESHOLD,
+    choose_linear_solver,
+    rigid_body_modes,
+)
 
 MESHES = Path(__file__).resolve().parent.parent / "meshes"
 
@@ -89,7 +95,10 @@ def test_automatic_choice():
     mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1)
     domain = hf.Domain.from_locators(mesh, {"x0": lambda x: np.isclose(x[0], 0.0)})
     mixed = solid_problem(domain, SplitEnergy(lambda F: 0.5 * (isochoric_invariants(F)[0] - 3.0), 1e3))
-    assert dict(choose_linear_solver(mixed, threshold=0).options) == DIRECT  # saddle point: LU
+    assert dict(choose_linear_solver(mixed, threshold=0).options) == DIRECT  # below the mixed threshold: LU
+    assert mixed.u.function_space.dofmap.index_map.size_global < MIXED_DIRECT_THRESHOLD
+    split = choose_linear_solver(mixed, mixed_threshold=0)
+    assert split.options["pc_type"] == "fieldsplit" and split.preconditioner is not None and split.configure
 
 
 @pytest.mark.parametrize("load", [bend_load, twist_load], ids=["bend-cg", "twist-gmres"])
@@ -139,3 +148,68 @@ def test_iterative_equals_direct_dynamic_step():
         results.append(problem.u.x.array.copy())
     scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
     np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-9 * scale)  # measured 7e-12 * scale
+
+
+# -- the mixed (u, p, theta) problem: Schur field split -----------------------------------------
+
+MU, BULK = 3.0e5, 1.0e9 / 3.0  # nearly incompressible: K / mu ~ 1e3
+
+
+def _mixed_beam(loads=(), bcs=None):
+    mesh = dmesh.create_box(MPI.COMM_WORLD, [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]], [4, 2, 2], dmesh.CellType.tetrahedron)
+    domain = hf.Domain.from_locators(
+        mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
+    )
+    material = SplitEnergy(lambda F: 0.5 * MU * (isochoric_invariants(F)[0] - 3.0), BULK)
+    return solid_problem(domain, material, bcs=bcs or [hf.Clamp("clamped")], loads=list(loads))
+
+
+def test_reference_shear_modulus_is_the_linearised_one():
+    """2 mu of the isochoric energy from its deviatoric second derivative at F = I (Mooney-Rivlin: 2(c1 + c2))."""
+    problem = _mixed_beam()
+    assert problem.reference_shear_moduli()[None] == pytest.approx(MU, rel=1e-12)
+    c1, c2 = 2.0, 0.5
+    mr = solid_problem(
+        problem.domain,
+        SplitEnergy(lambda F: c1 * (isochoric_invariants(F)[0] - 3.0) + c2 * (isochoric_invariants(F)[1] - 3.0), 1e3),
+    )
+    assert mr.reference_shear_moduli()[None] == pytest.approx(2.0 * (c1 + c2), rel=1e-12)
+
+
+@pytest.mark.parametrize("drive", ["traction", "displacement"])
+def test_mixed_fieldsplit_equals_direct(drive):
+    """FGMRES + Schur field split gives the LU solution (dead traction; prescribed displacement via the predictor)."""
+    results = []
+    for threshold in (10**12, 0):
+        if drive == "traction":
+            problem = _mixed_beam(loads=[bend_load()])
+        else:
+            problem = _mixed_beam(
+                bcs=[hf.Clamp("clamped"), hf.PrescribedDisplacement("free_end", [-1.0], components=[1])]
+            )
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, mixed_threshold=threshold))
+        problem.set_load_factor(1.0)
+        rec = solver.solve(raise_on_failure=True)
+        assert rec.linear_solver == ("preonly+lu(mumps)" if threshold else "fgmres+fieldsplit")
+        if not threshold:
+            # a good Schur approximation: tens of Krylov iterations per Newton step, not hundreds
+            assert rec.linear_iterations < 150 * rec.iterations
+        results.append(problem.u.x.array.copy())
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
+
+
+def test_mixed_fieldsplit_dynamic_step():
+    """A backward-Euler step of the mixed problem (mass in the displacement block) with the field split equals LU."""
+    from hyperfem import dynamics as dyn
+
+    results = []
+    for threshold in (10**12, 0):
+        problem = dyn.IncrementalProblem(
+            _mixed_beam(loads=[bend_load()]), dyn.BackwardEuler(), dyn.MassDensity(CantileverSpec().rho)
+        )
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, mixed_threshold=threshold))
+        dyn.integrate(problem, solver, dyn.TimeStepping(dt=0.05, t_end=0.1, adaptive=False))
+        results.append(problem.u.x.array.copy())
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)

@@ -217,6 +217,8 @@ class MixedHyperelasticProblem(EnergyProblem):
         )
         self._check_forms = None
         self.material = material
+        self._regions = regions
+        self._md = md
         self._dirichlet = [_CompiledDirichlet(bc, self.W.sub(0), domain) for bc in bcs]
 
         # Pi is stationary, not minimal, in p: never use it as a line-search merit.
@@ -240,6 +242,72 @@ class MixedHyperelasticProblem(EnergyProblem):
     def displacement_space(self) -> fem.FunctionSpace:
         """The displacement subspace ``W.sub(0)``."""
         return self.W.sub(0)
+
+    def field_dofs(self) -> dict[str, np.ndarray]:
+        """Local indices into :attr:`u`'s array of each field (owned and ghost dofs).
+
+        Keys ``"displacement"`` (in the order of the collapsed displacement
+        space, component fastest), ``"pressure"`` and ``"volume"``.
+        """
+        return {
+            "displacement": np.asarray(self._u_dofs, dtype=np.int64).reshape(-1),
+            "pressure": np.asarray(self._p_dofs, dtype=np.int64).reshape(-1),
+            "volume": np.asarray(self._theta_dofs, dtype=np.int64).reshape(-1),
+        }
+
+    def reference_shear_moduli(self) -> dict[str | None, float]:
+        r"""Small-strain shear modulus :math:`\mu_r` of each region's isochoric energy (at :math:`F = I`).
+
+        :math:`2\mu = \frac{1}{n}\sum_{k=1}^{n} D_k : \frac{\partial^2\psi_\text{iso}}{\partial F^2}(I) : D_k`
+        over an orthonormal basis :math:`D_k` of the symmetric deviatoric tensors
+        (:math:`n = 5` in 3D, 2 in 2D), averaged over the region (fibre fields
+        make it vary). Exact for an isotropic law (:math:`\mu` of its
+        linearisation), the mean over shear modes for an anisotropic one.
+        Collective; each region's small form is compiled on first use.
+        """
+        if getattr(self, "_shear_moduli", None) is None:
+            d = self.domain.gdim
+            basis = _deviatoric_basis(d)
+            F = ufl.variable(ufl.Identity(d))
+            i, j, k, l = ufl.indices(4)
+            moduli = {}
+            for name, m in self._regions.items():
+                A = ufl.diff(ufl.diff(m.isochoric(F), F), F)
+                two_mu = sum(ufl.as_matrix(D)[i, j] * A[i, j, k, l] * ufl.as_matrix(D)[k, l] for D in basis) / len(basis)
+                dx = self.domain.dx(name, metadata=self._md)
+                local = np.array(
+                    [
+                        fem.assemble_scalar(fem.form(0.5 * two_mu * dx)),
+                        fem.assemble_scalar(fem.form(fem.Constant(self.domain.mesh, 1.0) * dx)),
+                    ]
+                )
+                integral, measure = self.domain.comm.allreduce(local)
+                moduli[name] = float(integral / measure)
+            self._shear_moduli = moduli
+        return dict(self._shear_moduli)
+
+    def schur_preconditioner_term(self) -> ufl.Form:
+        r"""The pressure block added to the tangent to precondition its Schur complement.
+
+        Eliminating :math:`u` from the linearised three-field system leaves, in
+        the :math:`(p, \theta)` unknowns,
+        :math:`S = \begin{pmatrix} -B K_{uu}^{-1} B^T & -M \\ -M & H \end{pmatrix}`
+        (:math:`B` the linearised :math:`\int q\,\delta J`, :math:`M` the
+        :math:`p`–:math:`\theta` mass matrix, :math:`H = \int U''(\theta)\,\eta\,\hat\theta`).
+        :math:`K_{uu}` is the isochoric (shear) stiffness, so
+        :math:`B K_{uu}^{-1} B^T` is spectrally equivalent to the pressure mass
+        matrix over the shear modulus, uniformly in :math:`h` and in :math:`K/\mu`
+        (the Stokes argument). This returns
+        :math:`-\sum_r \mu_r^{-1}\int_{\Omega_r} p\,q\,dX` (see
+        :meth:`reference_shear_moduli`); the tangent plus this term is the
+        preconditioning matrix whose :math:`(p,\theta)` block is the Schur approximation.
+        """
+        p_hat = ufl.split(ufl.TrialFunction(self.W))[1]
+        q = ufl.split(ufl.TestFunction(self.W))[1]
+        return sum(
+            -(1.0 / mu) * p_hat * q * self.domain.dx(name, metadata=self._md)
+            for name, mu in self.reference_shear_moduli().items()
+        )
 
     def volume_jacobian(self) -> Expr:
         r""":math:`\min(J, \theta)`, so the solver's inversion guard keeps both positive.
@@ -284,6 +352,19 @@ class MixedHyperelasticProblem(EnergyProblem):
                 f"> {VOLUME_CONSISTENCY_LIMIT:g} (refine the mesh or reduce the load step)"
             )
         return indicators, None
+
+
+def _deviatoric_basis(d: int) -> list[np.ndarray]:
+    """An orthonormal basis (Frobenius product) of the symmetric traceless d×d tensors."""
+    basis = []
+    for a in range(d):
+        for b in range(a + 1, d):
+            D = np.zeros((d, d))
+            D[a, b] = D[b, a] = 1.0 / math.sqrt(2.0)
+            basis.append(D)
+    diagonal = [np.diag(v) for v in ([1.0, -1.0, 0.0][:d], [1.0, 1.0, -2.0][:d])][: d - 1]
+    basis.extend(D / np.linalg.norm(D) for D in diagonal)
+    return basis
 
 
 def solid_problem(

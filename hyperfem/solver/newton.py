@@ -331,6 +331,7 @@ class NewtonSolver:
                 problem.u,
                 bcs=problem.bcs,
                 J=problem.jacobian if jacobian is None else jacobian,
+                P=self.linear_solver.preconditioner,
                 petsc_options_prefix=prefix,
                 petsc_options=self.options,
                 form_compiler_options=form_compiler_options,
@@ -347,6 +348,8 @@ class NewtonSolver:
         self.linear_solver_name = describe(self.options)
         if self.linear_solver.near_nullspace is not None:
             self.linear_solver.near_nullspace(self._nlp.A)
+        if self.linear_solver.configure is not None:
+            self.linear_solver.configure(snes.getKSP())
         self._norms: list[float] = []
         self._callback_error: BaseException | None = None
         # Callbacks hold the solver weakly: a strong reference from the SNES
@@ -651,6 +654,11 @@ class NewtonSolver:
         A.zeroEntries()
         fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)
         A.assemble()
+        P = nlp.P_mat
+        if P is not None:
+            P.zeroEntries()
+            fpetsc.assemble_matrix(P, nlp.preconditioner, bcs=bcs)
+            P.assemble()
         b = self._residual_work
         with b.localForm() as loc:
             loc.set(0.0)
@@ -659,7 +667,7 @@ class NewtonSolver:
         fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
         du = x.duplicate()
         ksp = self.snes.getKSP()
-        ksp.setOperators(A, A)
+        ksp.setOperators(A, A if P is None else P)
         ksp.solve(b, du)
         ok = ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))
         applied = False
