@@ -373,6 +373,7 @@ class NewtonSolver:
             fem.form(problem.energy_external, form_compiler_options=form_compiler_options, jit_options=jit_options),
         )
         self._ref: tuple[float, float] | None = None
+        self._full_step_change: float | None = None
         self.roundoff_accepts = 0
         if energy_line_search:
             snes.setObjective(lambda snes_, x: me()._guarded(me()._objective, snes_, x))
@@ -497,21 +498,28 @@ class NewtonSolver:
         scale = abs(internal) + abs(external)
         if x.handle == snes.getSolution().handle or self._ref is None:
             self._ref = (value, scale)
+            self._full_step_change = None
             return value
         ref, ref_scale = self._ref
         X = snes.getSolution()
         R = snes.getFunction()[0]
         self._work.waxpy(-1.0, X, x)
         predicted = abs(R.dot(self._work))  # first-order energy change of the trial step
+        if self._full_step_change is None:  # the line search tries the full step first
+            self._full_step_change = predicted
         resolution = self.energy_roundoff_rtol * max(scale, ref_scale)
-        if abs(value - ref) <= resolution or predicted <= resolution:
-            # The energy cannot resolve this step: its observed or its predicted
-            # change is at the level of the cancellation noise in the assembled
-            # sum (the observed change alone is not enough: noise of 1e-8 of
-            # the scale was measured in a dynamic step whose predicted change
-            # was 1e-12). Judge it by the residual norm instead; if that
-            # decreased, report the decrease the linear model predicts,
-            # -R(X)·(x - X), so the step is accepted.
+        if self._full_step_change <= resolution and (abs(value - ref) <= resolution or predicted <= resolution):
+            # Near convergence the energy cannot resolve the Newton step: its
+            # observed or its predicted change is at the level of the
+            # cancellation noise in the assembled sum (the observed change
+            # alone is not enough: noise of 1e-8 of the scale was measured in a
+            # dynamic step whose predicted change was 1e-12). Judge it by the
+            # residual norm instead; if that decreased, report the decrease the
+            # linear model predicts, -R(X)·(x - X), so the step is accepted.
+            # Only when the *full* step is below the resolution: a step the line
+            # search has merely shortened far from the solution is judged by
+            # the energy (accepting it by a residual dip made a hard step crawl
+            # for 50 iterations instead of failing fast and being cut back).
             snes.computeFunction(x, self._residual_work)
             self._set_state(x)
             if self._residual_work.norm() < R.norm():
