@@ -98,7 +98,7 @@ def test_automatic_choice():
     assert dict(choose_linear_solver(mixed, threshold=0).options) == DIRECT  # below the mixed threshold: LU
     assert mixed.u.function_space.dofmap.index_map.size_global < MIXED_DIRECT_THRESHOLD
     split = choose_linear_solver(mixed, mixed_threshold=0)
-    assert split.options["pc_type"] == "fieldsplit" and split.preconditioner is not None and split.configure
+    assert split.options["pc_type"] == "fieldsplit" and split.preconditioner_shift is not None and split.configure
 
 
 @pytest.mark.parametrize("load", [bend_load, twist_load], ids=["bend-cg", "twist-gmres"])

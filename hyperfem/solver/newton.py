@@ -331,7 +331,6 @@ class NewtonSolver:
                 problem.u,
                 bcs=problem.bcs,
                 J=problem.jacobian if jacobian is None else jacobian,
-                P=self.linear_solver.preconditioner,
                 petsc_options_prefix=prefix,
                 petsc_options=self.options,
                 form_compiler_options=form_compiler_options,
@@ -350,6 +349,19 @@ class NewtonSolver:
             self.linear_solver.near_nullspace(self._nlp.A)
         if self.linear_solver.configure is not None:
             self.linear_solver.configure(snes.getKSP())
+        self._shift: PETSc.Mat | None = None
+        self._P: PETSc.Mat | None = None
+        if self.linear_solver.preconditioner_shift is not None:
+            # Assembled into the tangent's sparsity (every cell block of W), so
+            # tangent, shift and preconditioning matrix share one pattern.
+            self._shift = self._nlp.A.duplicate()
+            fpetsc.assemble_matrix(
+                self._shift,
+                fem.form(self.linear_solver.preconditioner_shift, form_compiler_options=form_compiler_options,
+                         jit_options=jit_options),
+            )
+            self._shift.assemble()
+            self._P = self._shift.duplicate(copy=True)
         self._norms: list[float] = []
         self._callback_error: BaseException | None = None
         # Callbacks hold the solver weakly: a strong reference from the SNES
@@ -359,6 +371,14 @@ class NewtonSolver:
         snes.setMonitor(lambda _snes, _it, norm: me()._norms.append(float(norm)))
         if self.state_hooks:
             self._wrap_assembly(me)
+        if self._P is not None:
+            _, _, (jacobian, _, jacobian_kw) = snes.getJacobian()
+
+            def shifted_jacobian(snes_, x, A, P):
+                jacobian(snes_, x, A, None, **jacobian_kw)
+                me()._shifted(A)
+
+            snes.setJacobian(shifted_jacobian, self._nlp.A, self._P)
 
         if energy_line_search is None:
             energy_line_search = problem.conservative
@@ -467,6 +487,13 @@ class NewtonSolver:
 
         snes.setFunction(hooked_residual, b)
         snes.setJacobian(hooked_jacobian, self._nlp.A, self._nlp.P_mat)
+
+    def _shifted(self, A: PETSc.Mat) -> PETSc.Mat:
+        """The preconditioning matrix: a copy of the assembled tangent ``A`` plus the constant shift."""
+        P = self._P
+        A.copy(P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        P.axpy(1.0, self._shift, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        return P
 
     def refresh(self) -> None:
         """Run the state hooks at the current ``problem.u``."""
@@ -662,11 +689,7 @@ class NewtonSolver:
         A.zeroEntries()
         fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)
         A.assemble()
-        P = nlp.P_mat
-        if P is not None:
-            P.zeroEntries()
-            fpetsc.assemble_matrix(P, nlp.preconditioner, bcs=bcs)
-            P.assemble()
+        P = None if self._P is None else self._shifted(A)
         b = self._residual_work
         with b.localForm() as loc:
             loc.set(0.0)
