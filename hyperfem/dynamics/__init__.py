@@ -1,4 +1,4 @@
-"""Dynamics: time integrators as incremental potentials, damping, mass, time stepping, diagnostics.
+"""Dynamics: implicit (incremental potentials), semi-implicit and explicit stepping, damping, mass, diagnostics.
 
 Time-integration concepts only; the reference set-ups (the dynamic
 cantilever, beam theory) live in :mod:`hyperfem.cases`. Any problem that
@@ -19,10 +19,18 @@ three-field) can be integrated in time.
 
 from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form, viscous_damping
 from hyperfem.dynamics.diagnostics import Diagnostics
+from hyperfem.dynamics.explicit import ExplicitDynamics, ExplicitStage, integrate_explicit
 from hyperfem.dynamics.incremental import DisplacementBlock, DynamicState, IncrementalProblem
 from hyperfem.dynamics.integrators import BackwardEuler, GeneralizedAlpha, Newmark, QuasiStatic, TimeIntegrator
-from hyperfem.dynamics.mass import MassDensity
+from hyperfem.dynamics.mass import MassDensity, lumped_mass, total_mass
 from hyperfem.dynamics.motion import Ramp, RigidRotation, Steady, rotating_surface, rotation_matrix
+from hyperfem.dynamics.semi_implicit import (
+    SemiImplicitStage,
+    integrate_semi_implicit,
+    linearization_residual,
+    semi_implicit_solver,
+)
+from hyperfem.dynamics.stability import StableStep, inscribed_diameters, stable_time_step, wave_speed
 from hyperfem.solver.stepping import TimeStepping, TimeStepRecord, integrate
 
 __all__ = [
@@ -30,6 +38,8 @@ __all__ = [
     "Diagnostics",
     "DisplacementBlock",
     "DynamicState",
+    "ExplicitDynamics",
+    "ExplicitStage",
     "GeneralizedAlpha",
     "IncrementalProblem",
     "MassDensity",
@@ -38,13 +48,24 @@ __all__ = [
     "Ramp",
     "RayleighDamping",
     "RigidRotation",
+    "SemiImplicitStage",
+    "StableStep",
     "Steady",
     "TimeIntegrator",
     "TimeStepRecord",
     "TimeStepping",
+    "inscribed_diameters",
     "integrate",
+    "integrate_explicit",
+    "integrate_semi_implicit",
+    "linearization_residual",
+    "lumped_mass",
     "reference_stiffness_form",
     "rotating_surface",
     "rotation_matrix",
+    "semi_implicit_solver",
+    "stable_time_step",
+    "total_mass",
     "viscous_damping",
+    "wave_speed",
 ]

@@ -7,6 +7,10 @@ linear (P1) elements gives the row-sum diagonal mass; it is refused for
 higher degrees, where vertex lumping would leave nodes without mass.
 
 Density may differ per region (physical-group name → :math:`\rho_r`).
+
+:func:`lumped_mass` assembles the diagonal of the lumped mass as a vector
+(what explicit time stepping divides by), :func:`total_mass` the mass
+:math:`\sum_r \rho_r|\Omega_r|` that every mass matrix carries.
 """
 
 from __future__ import annotations
@@ -15,13 +19,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import ufl
-from dolfinx import fem
+from mpi4py import MPI
+from dolfinx import fem, la
 
 from hyperfem.errors import ParameterError
 from hyperfem.materials.parameters import check_positive
 from hyperfem.mesh.domain import Domain
 
-__all__ = ["MassDensity"]
+__all__ = ["MassDensity", "lumped_mass", "total_mass"]
 
 
 @dataclass(frozen=True)
@@ -62,3 +67,41 @@ class MassDensity:
         mesh = domain.mesh
         # Densities enter as Constants: one compiled form serves every density.
         return sum(fem.Constant(mesh, rho) * integrand * domain.dx(name, metadata=md) for name, rho in self._regions)
+
+
+def lumped_mass(density: MassDensity, domain: Domain, space: fem.FunctionSpace) -> fem.Function:
+    r"""The diagonal of the lumped mass, :math:`m_a = \int_\Omega \rho\,N_a\,dX` per dof (row-sum lumping).
+
+    Assembled with the vertex rule of :meth:`MassDensity.metadata` (for P1
+    the row sums of the consistent mass: :math:`\rho|K|/(d+1)` to each vertex
+    of a simplex), the same for every component of a vector space.
+
+    Args:
+        density: The density (``lumped`` or not: the diagonal is the same).
+        domain: The mesh.
+        space: A degree-1 Lagrange space (scalar or vector).
+
+    Returns:
+        A function on ``space`` whose entries (ghosts included) are the masses.
+
+    Raises:
+        ParameterError: For a space of degree other than 1.
+    """
+    degree = space.ufl_element().embedded_superdegree
+    lumped = MassDensity(density.value, lumped=True)
+    lumped.metadata(degree)  # refuses degree > 1
+    v = ufl.TestFunction(space)
+    ones = v if not space.value_shape else sum(v[i] for i in range(space.value_shape[0]))
+    vec = fem.assemble_vector(fem.form(lumped.integral(ones, domain, degree)))
+    vec.scatter_reverse(la.InsertMode.add)
+    vec.scatter_forward()
+    mass = fem.Function(space, name="lumped_mass")
+    mass.x.array[:] = vec.array
+    return mass
+
+
+def total_mass(density: MassDensity, domain: Domain) -> float:
+    r""":math:`\sum_r \rho_r |\Omega_r|`, reduced over the mesh communicator."""
+    one = fem.Constant(domain.mesh, 1.0)
+    form = fem.form(MassDensity(density.value).integral(one, domain, 1))
+    return float(domain.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
