@@ -108,3 +108,15 @@ def test_convergence_note_from_the_table():
     assert convergence_note("bend", 2, None, [ref[0], 1.01 * ref[1], ref[2]]).startswith("P2, this mesh: 1.0 % from")
     assert mesh_size_of("meshes/beam_h1.msh") == 1.0 and mesh_size_of("beam_h0.5.msh") == 0.5
     assert mesh_size_of("my_part.msh") is None and mesh_size_of(None) is None
+
+
+def test_methods_demo(shared_tmp):
+    """The seed 003 method comparison runs every method on a short bend and reports its costs."""
+    demo = load_demo("methods")
+    s = demo.main(["--case", "bend", "--t-end", "0.02", "--dt", "0.005", "--dt-implicit", "0.01",
+                   "--output", str(shared_tmp), "--quiet"])
+    m = s["methods"]
+    assert set(m) >= {"I-FEM", "SI-FEM", "L-FEM", "FVM", "SE-FEM"} and all(r["completed"] for r in m.values())
+    assert m["SI-FEM"]["newton_iterations_per_step"] == 1 and m["FVM"]["newton_iterations_per_step"] == 0
+    assert m["FVM"]["dt_crit"] == pytest.approx(0.012896, rel=1e-3)  # h_min / c on beam_h2 (lumped mass)
+    assert (shared_tmp / "bend.json").exists()
