@@ -20,6 +20,7 @@ from mpi4py import MPI  # noqa: F401  (must precede dolfinx / petsc4py)
 
 from hyperfem import errors, kinematics, materials, mesh, simulation
 from hyperfem.errors import (
+    CheckpointError,
     ConvergenceError,
     HyperfemError,
     MeshError,
@@ -53,6 +54,7 @@ from hyperfem.solver.stepping import StepPolicy
 __version__ = "0.1.0"
 
 __all__ = [
+    "CheckpointError",
     "BodyForce",
     "Clamp",
     "ConvergenceError",

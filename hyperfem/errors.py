@@ -9,6 +9,7 @@ non-zero without a traceback.
 from __future__ import annotations
 
 __all__ = [
+    "CheckpointError",
     "ConvergenceError",
     "HyperfemError",
     "MeshError",
@@ -33,6 +34,10 @@ class MeshError(HyperfemError):
 
 class MeshFileNotFoundError(MeshError, FileNotFoundError):
     """The mesh file does not exist."""
+
+
+class CheckpointError(HyperfemError, ValueError):
+    """A checkpoint cannot be read, or does not belong to the run that tries to restart from it."""
 
 
 class OutputError(HyperfemError, OSError):

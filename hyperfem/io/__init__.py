@@ -1,6 +1,24 @@
-"""Input/output: point probes, quadrature-point minima, VTX files, JSON summaries, collective output-folder checks."""
+"""Input/output: point probes, quadrature-point minima, VTX/XDMF files, JSON summaries, checkpoints.
 
+Output folders are checked collectively (every rank raises the same error).
+"""
+
+from hyperfem.io.checkpoint import CheckpointError, read_functions, read_meta, resolve_checkpoint, write_checkpoint
 from hyperfem.io.probes import PointProbe, QuadratureMinimum
-from hyperfem.io.results import VTXOutput, ensure_output_dir, on_rank0, write_json
+from hyperfem.io.results import VTXOutput, XDMFOutput, ensure_output_dir, on_rank0, vtx_steps, write_json
 
-__all__ = ["PointProbe", "QuadratureMinimum", "VTXOutput", "ensure_output_dir", "on_rank0", "write_json"]
+__all__ = [
+    "CheckpointError",
+    "PointProbe",
+    "QuadratureMinimum",
+    "VTXOutput",
+    "XDMFOutput",
+    "ensure_output_dir",
+    "on_rank0",
+    "read_functions",
+    "read_meta",
+    "resolve_checkpoint",
+    "vtx_steps",
+    "write_checkpoint",
+    "write_json",
+]

@@ -1,10 +1,13 @@
-"""Writing results: VTX (ADIOS2) files for ParaView and JSON files.
+"""Writing results: VTX (ADIOS2) and XDMF files for ParaView, and JSON files.
 
 JSON files and folder checks are written by rank 0 (:func:`on_rank0`); its
 outcome is broadcast so that a folder that cannot be created or written
 raises the same :class:`~hyperfem.errors.OutputError` on every rank instead
 of leaving the other ranks waiting in a collective call. VTX files are
-written collectively by ADIOS2. What a run writes, and when, is decided by the
+written collectively by ADIOS2 (BP4 engine: every frame is indexed as it is
+written, so a killed run leaves every complete frame readable;
+:func:`vtx_steps` counts them). XDMF files (:class:`XDMFOutput`) are written
+collectively through HDF5. What a run writes, and when, is decided by the
 outputs of :class:`~hyperfem.simulation.Simulation`.
 """
 
@@ -21,7 +24,7 @@ from dolfinx import fem, io
 
 from hyperfem.errors import OutputError
 
-__all__ = ["VTXOutput", "ensure_output_dir", "on_rank0", "write_json"]
+__all__ = ["VTXOutput", "XDMFOutput", "ensure_output_dir", "jsonable", "on_rank0", "vtx_steps", "write_json"]
 
 
 def _reason(exc: BaseException) -> str:
@@ -80,11 +83,12 @@ def ensure_output_dir(path: str | Path, comm) -> Path:
     return path
 
 
-def _jsonable(obj):
+def jsonable(obj):
+    """``obj`` with NumPy arrays and scalars, tuples and paths turned into JSON types (recursively)."""
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, (np.floating, np.integer)):
@@ -109,7 +113,7 @@ def write_json(path: str | Path, data: dict, comm) -> Path:
     path = Path(path)
 
     def write() -> None:
-        text = json.dumps(_jsonable(data), indent=2, default=str) + "\n"
+        text = json.dumps(jsonable(data), indent=2, default=str) + "\n"
         path.parent.mkdir(parents=True, exist_ok=True)
         partial = path.with_name(f".{path.name}.partial")
         partial.write_text(text)
@@ -167,6 +171,75 @@ class VTXOutput:
         self._writer.close()
 
     def __enter__(self) -> VTXOutput:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+BP4_INDEX_HEADER = 64
+"""Bytes of the header of a BP4 ``md.idx`` file; one record of the same size follows per step."""
+
+
+def vtx_steps(path: str | Path) -> int:
+    """Number of complete frames (steps) in a VTX/BP4 folder, from its index ``md.idx``.
+
+    ADIOS2's BP4 engine appends one 64-byte record to ``md.idx`` at the end of
+    every step, after the step's data and metadata, so the count is that of
+    the frames a reader (ParaView) finds, also in a file whose writer was killed.
+    0 when the folder or its index does not exist.
+    """
+    index = Path(path) / "md.idx"
+    if not index.is_file():
+        return 0
+    return max(0, (index.stat().st_size - BP4_INDEX_HEADER) // BP4_INDEX_HEADER)
+
+
+class XDMFOutput:
+    """An XDMF (``.xdmf`` + ``.h5``) time series of functions, for ParaView.
+
+    XDMF holds one mesh and, per time, nodal values on the mesh's geometry
+    nodes or one value per cell. So every function is interpolated into the
+    Lagrange space of the geometry's degree (P1 on straight cells; a P2
+    displacement loses its edge values) unless it is cell-wise constant
+    (DG0), which is written as cell data. Use :class:`VTXOutput` for
+    higher-degree fields.
+
+    Args:
+        comm: Communicator.
+        path: Output ``.xdmf`` file (its parent is created and checked on every rank).
+        functions: Functions on one mesh (their names appear in ParaView).
+    """
+
+    def __init__(self, comm, path: str | Path, functions: Sequence[fem.Function]):
+        self.path = Path(path)
+        ensure_output_dir(self.path.parent, comm)
+        mesh = functions[0].function_space.mesh
+        degree = mesh.geometry.cmaps[0].degree
+        self._pairs = []
+        for f in functions:
+            element = f.function_space.ufl_element()
+            shape = f.function_space.value_shape
+            if element.discontinuous and element.embedded_superdegree == 0:
+                family, k = "DG", 0
+            else:
+                family, k = "Lagrange", degree
+            V = fem.functionspace(mesh, (family, k, shape) if shape else (family, k))
+            self._pairs.append((f, fem.Function(V, name=f.name)))
+        self._file = io.XDMFFile(comm, str(self.path), "w")
+        self._file.write_mesh(mesh)
+
+    def write(self, t: float) -> None:
+        """Interpolate the functions and append them at time ``t``."""
+        for f, g in self._pairs:
+            g.interpolate(f)
+            self._file.write_function(g, float(t))
+
+    def close(self) -> None:
+        """Close the file."""
+        self._file.close()
+
+    def __enter__(self) -> XDMFOutput:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -2,22 +2,43 @@
 
 >>> from mpi4py import MPI
 >>> import hyperfem as hf
->>> from hyperfem.simulation import JSONSummary, Probe, Simulation, VTX
+>>> from hyperfem.simulation import Checkpoint, CSVLog, FieldOutput, JSONSummary, Probe, Reactions, Simulation
 >>> domain = hf.beam_mesh(h=2.0)
 >>> params = hf.materials.LameParameters.from_youngs(E=1e6, nu=0.3)
->>> problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params),
+>>> psi = lambda F: hf.materials.neo_hookean(F, params)
+>>> problem = hf.HyperelasticProblem(domain, psi,
 ...     bcs=[hf.Clamp("clamped")], loads=[hf.DeadTraction("free_end", (0, -5e3, 0))])
->>> sim = Simulation(problem, hf.NewtonSolver(problem), hf.StepPolicy(end=1.0, increment=0.5),
-...     [Probe([(4.5, 1.5, 1.5)]), VTX("output/bend.bp"), JSONSummary("output/bend.json")], name="bend")
->>> summary = sim.run()
+>>> outputs = [Probe([(4.5, 1.5, 1.5)]), Reactions(), CSVLog("output/bend.csv"),
+...     FieldOutput("output", psi, name="bend"), JSONSummary("output/bend.json"),
+...     Checkpoint("output/bend.checkpoint", every=5)]
+>>> sim = Simulation(problem, hf.NewtonSolver(problem), hf.StepPolicy(end=1.0, increment=0.5), outputs, name="bend")
+>>> summary = sim.run()            # or sim.run(restart="output/bend.checkpoint") after a kill
 
 The same :class:`Simulation` runs an :class:`~hyperfem.dynamics.IncrementalProblem`
 under a :class:`~hyperfem.dynamics.TimeStepping`.
+
+What each output writes is on disk after every step (a killed run keeps every
+completed step). Modules: :mod:`~hyperfem.simulation.outputs` (files),
+:mod:`~hyperfem.simulation.measures` (probes, boundary averages, cell fields),
+:mod:`~hyperfem.simulation.reactions` (reaction forces and moments of every
+Dirichlet boundary), :mod:`~hyperfem.simulation.fields` (stress, von Mises,
+J, fibre stretch, activation in VTX or XDMF), :mod:`~hyperfem.simulation.checkpoint`
+(checkpoint/restart), :mod:`~hyperfem.simulation.plots` (PNG plots of a run's files).
 """
 
-from hyperfem.simulation.measures import BoundaryAverage, CellFields, Probe, RadialBulge, Reaction, cauchy_stress
+from hyperfem.simulation.measures import (
+    BoundaryAverage,
+    CellFields,
+    CellFunctions,
+    Probe,
+    RadialBulge,
+    Reaction,
+    cauchy_stress,
+)
 from hyperfem.simulation.outputs import (
     VTX,
+    XDMF,
+    ConvergenceLog,
     CSVLog,
     Derived,
     JSONSummary,
@@ -25,16 +46,28 @@ from hyperfem.simulation.outputs import (
     Progress,
     Quantity,
     Recorder,
+    continuation_path,
     format_summary,
+    read_convergence,
 )
+from hyperfem.simulation.reactions import DirichletReactions, ReactionResult, Reactions
+from hyperfem.simulation.fields import FieldOutput, cell_field_expressions, von_mises
+from hyperfem.simulation.checkpoint import Checkpoint, CheckpointError, StepperState
 from hyperfem.simulation.runner import Fields, Simulation
 
 __all__ = [
     "VTX",
+    "XDMF",
     "BoundaryAverage",
     "CSVLog",
     "CellFields",
+    "CellFunctions",
+    "Checkpoint",
+    "CheckpointError",
+    "ConvergenceLog",
     "Derived",
+    "DirichletReactions",
+    "FieldOutput",
     "Fields",
     "JSONSummary",
     "Output",
@@ -43,8 +76,15 @@ __all__ = [
     "Quantity",
     "RadialBulge",
     "Reaction",
+    "ReactionResult",
+    "Reactions",
     "Recorder",
     "Simulation",
+    "StepperState",
     "cauchy_stress",
+    "cell_field_expressions",
+    "continuation_path",
     "format_summary",
+    "read_convergence",
+    "von_mises",
 ]

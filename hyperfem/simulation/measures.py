@@ -12,7 +12,9 @@ the summary:
   :math:`\max_X \big(|(X + u)_\perp| - |X_\perp|\big)` over the displacement nodes.
 
 :class:`CellFields` writes cell-wise fields (fibre stretch, activation,
-:func:`cauchy_stress`, ...) as a VTX time series. All of them work on the
+:func:`cauchy_stress`, ...) as a VTX time series (the derived fields of
+:mod:`hyperfem.simulation.fields` build on it). The reaction forces of every
+Dirichlet boundary, with moments, are :class:`~hyperfem.simulation.reactions.Reactions`. All of them work on the
 displacement and the three-field problem (through
 :class:`~hyperfem.simulation.Fields`) and, for a dynamic run, on its base problem.
 """
@@ -35,7 +37,7 @@ from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, Spli
 from hyperfem.simulation.outputs import VTX, Output
 from hyperfem.solver.stepping import StepRecord
 
-__all__ = ["BoundaryAverage", "CellFields", "Probe", "RadialBulge", "Reaction", "cauchy_stress"]
+__all__ = ["BoundaryAverage", "CellFields", "CellFunctions", "Probe", "RadialBulge", "Reaction", "cauchy_stress"]
 
 Expr = ufl.core.expr.Expr
 
@@ -80,6 +82,9 @@ class Reaction(_Column):
 
     From the residual of the stored energy (:class:`~hyperfem.problem.ReactionForce`);
     for a dynamic run that of the base problem: the elastic force, without inertia.
+    :class:`~hyperfem.simulation.reactions.Reactions` gives force and moment of
+    every Dirichlet boundary from the full residual (loads on the boundary and,
+    for a dynamic run, inertia included).
 
     Args:
         boundary: Boundary name.
@@ -209,8 +214,57 @@ def cauchy_stress(problem, materials: Mapping[str | None, SplitEnergy | Callable
     return out
 
 
+class CellFunctions:
+    """Expressions interpolated into cell-wise functions (DG of a given degree), per region.
+
+    The machinery of :class:`CellFields` and of
+    :class:`~hyperfem.simulation.fields.FieldOutput`: compiled once, refreshed
+    before every frame.
+
+    Args:
+        domain: The :class:`~hyperfem.mesh.Domain`.
+        fields: Name → UFL expression (or number), or name → {region → expression}
+            (cells outside the listed regions are zero).
+        degree: Degree of the discontinuous Lagrange space (0: one value per
+            cell, at its midpoint).
+
+    Attributes:
+        functions: The functions, in the order of ``fields``.
+    """
+
+    def __init__(self, domain, fields: Mapping[str, Expr | float | Mapping[str | None, Expr | float]], degree: int = 0):
+        if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 0):
+            raise ParameterError(f"CellFields: degree must be an integer >= 0, got {degree!r}")
+        mesh = domain.mesh
+        self._parts: list[tuple[fem.Function, list]] = []
+        self.functions: list[fem.Function] = []
+        for name, spec in fields.items():
+            parts = dict(spec) if isinstance(spec, Mapping) else {None: spec}
+            parts = {r: fem.Constant(mesh, float(e)) if isinstance(e, numbers.Real) else e for r, e in parts.items()}
+            shape = next(iter(parts.values())).ufl_shape
+            V = fem.functionspace(mesh, ("DG", degree, shape) if shape else ("DG", degree))
+            f = fem.Function(V, name=name)
+            points = V.element.interpolation_points
+            compiled = [
+                (None if region is None else domain.cells(region), fem.Expression(e, points))
+                for region, e in parts.items()
+            ]
+            self._parts.append((f, compiled))
+            self.functions.append(f)
+
+    def refresh(self) -> None:
+        """Interpolate every expression at the current state."""
+        for f, compiled in self._parts:
+            for cells, expr in compiled:
+                if cells is None:
+                    f.interpolate(expr)
+                else:
+                    f.interpolate(expr, cells0=cells)
+            f.x.scatter_forward()
+
+
 class CellFields(VTX):
-    """Cell-wise (DG0, at cell midpoints) fields as a VTX time series.
+    """Cell-wise fields (DG0 at cell midpoints, or DG of a higher degree) as a VTX time series.
 
     Args:
         path: The ``.bp`` folder.
@@ -218,6 +272,8 @@ class CellFields(VTX):
             (cells outside the listed regions are zero).
         times: As for :class:`~hyperfem.simulation.outputs.VTX`.
         role: Key in ``sim.files`` (default: the file name).
+        degree: Degree of the discontinuous space (0: one value per cell;
+            ``k - 1`` follows the stress of a degree-k displacement).
     """
 
     def __init__(
@@ -227,37 +283,18 @@ class CellFields(VTX):
         *,
         times: Sequence[float] | None = None,
         role: str | None = None,
+        degree: int = 0,
     ):
         super().__init__(path, None, times=times, role=role or Path(path).name)
         self.fields = dict(fields)
-        self._parts: list[tuple[fem.Function, list]] = []
+        self.degree = degree
+        self._cells: CellFunctions | None = None
 
     def start(self, sim) -> None:
         """Compile the expressions and open the file."""
-        domain = sim.fields.base.domain
-        mesh = domain.mesh
-        self._parts, functions = [], []
-        for name, spec in self.fields.items():
-            parts = dict(spec) if isinstance(spec, Mapping) else {None: spec}
-            parts = {r: fem.Constant(mesh, float(e)) if isinstance(e, numbers.Real) else e for r, e in parts.items()}
-            shape = next(iter(parts.values())).ufl_shape
-            V = fem.functionspace(mesh, ("DG", 0, shape) if shape else ("DG", 0))
-            f = fem.Function(V, name=name)
-            points = V.element.interpolation_points
-            compiled = [
-                (None if region is None else domain.cells(region), fem.Expression(e, points))
-                for region, e in parts.items()
-            ]
-            self._parts.append((f, compiled))
-            functions.append(f)
-        self.functions = functions
+        self._cells = CellFunctions(sim.fields.base.domain, self.fields, self.degree)
+        self.functions = self._cells.functions
         super().start(sim)
 
     def _refresh(self) -> None:
-        for f, compiled in self._parts:
-            for cells, expr in compiled:
-                if cells is None:
-                    f.interpolate(expr)
-                else:
-                    f.interpolate(expr, cells0=cells)
-            f.x.scatter_forward()
+        self._cells.refresh()

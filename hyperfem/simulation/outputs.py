@@ -8,31 +8,54 @@ An output overrides what it needs of :class:`Output`:
   columns for the row of that state;
 * :meth:`~Output.write` — after the row is complete: write files;
 * :meth:`~Output.summary` — entries for the run's summary;
-* :meth:`~Output.close` — once, at the end or after a failure.
+* :meth:`~Output.close` — once, at the end or after a failure;
+* :meth:`~Output.state` and :meth:`~Output.restart` — what a checkpoint
+  keeps of the output, and how it continues from it
+  (:mod:`hyperfem.simulation.checkpoint`): on a restart
+  :meth:`~Output.restart` replaces the recording of the initial state.
 
-Writers here: :class:`VTX` (ParaView time series), :class:`CSVLog` (one line
-per state), :class:`JSONSummary` (the whole summary, rewritten after every
-step), :class:`Progress` (a line on rank 0). Adapters: :class:`Quantity` (a
+Everything is on disk when :meth:`~Output.write` returns, so a run killed at
+any moment (SIGKILL) leaves every completed step readable: the CSV line is
+appended and the file closed, the JSON summary replaced atomically, the VTX
+frame indexed (:func:`~hyperfem.io.vtx_steps`), the convergence line appended.
+
+Writers here: :class:`VTX` (ParaView time series), :class:`XDMF` (the same
+as XDMF, P1/DG0), :class:`CSVLog` (one line per state), :class:`JSONSummary`
+(the whole summary, rewritten after every step), :class:`ConvergenceLog`
+(the Newton residual norms of every step, one JSON line each),
+:class:`Progress` (a line on rank 0). Adapters: :class:`Quantity` (a
 column from a callable), :class:`Recorder` (an object with ``record(step)``,
 e.g. :class:`~hyperfem.dynamics.Diagnostics`), :class:`Derived` (a summary
 entry computed from the others). The measures of mechanics (probes, reaction
-forces, bulge, cell fields) are in :mod:`hyperfem.simulation.measures`.
+forces, bulge, cell fields) are in :mod:`hyperfem.simulation.measures` and
+:mod:`hyperfem.simulation.reactions`, derived fields (stress, J, fibre
+stretch) in :mod:`hyperfem.simulation.fields`.
+
+A restarted run cannot append to the VTX/XDMF files of the first one
+(DOLFINx writers start a new file), so it writes its frames to
+:func:`continuation_path` (``bend.bp`` → ``bend.restart-000012.bp``, 12 the
+step it continues from) and the summary lists both (``vtx_parts``). CSV,
+JSON and convergence files are rewritten with the rows kept in the
+checkpoint, then appended as before.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 from dolfinx import fem
 
-from hyperfem.io.results import VTXOutput, ensure_output_dir, on_rank0, write_json
+from hyperfem.io.results import VTXOutput, XDMFOutput, ensure_output_dir, on_rank0, write_json
 from hyperfem.solver.stepping import StepRecord
 
 __all__ = [
+    "XDMF",
     "CSVLog",
+    "ConvergenceLog",
     "Derived",
     "JSONSummary",
     "Output",
@@ -40,7 +63,9 @@ __all__ = [
     "Quantity",
     "Recorder",
     "VTX",
+    "continuation_path",
     "format_summary",
+    "read_convergence",
 ]
 
 
@@ -64,39 +89,47 @@ class Output:
     def close(self, sim) -> None:
         """After the last step, or after a failure (``sim.completed`` tells which)."""
 
+    def state(self, sim) -> dict | None:
+        """What a checkpoint keeps of this output (JSON-serialisable), or ``None``."""
+        return None
 
-class VTX(Output):
-    """A VTX (``.bp``) time series for ParaView: the initial state and then every step (or given times).
+    def restart(self, sim, state: dict | None) -> None:
+        """Continue from a checkpoint: ``sim.rows`` holds the rows so far, ``state`` what :meth:`state` returned."""
 
-    Args:
-        path: The ``.bp`` folder.
-        functions: What to write; default the simulation's
-            :meth:`~hyperfem.simulation.Fields.output` (displacement; pressure
-            of the three-field problem; velocity of a dynamic run).
-        times: Write only when a step reaches or passes the next of these
-            times (use must-hit times to land on them); ``None``: every step.
-        role: Key in ``sim.files`` (default ``"vtx"``).
-    """
+
+def continuation_path(path: str | Path, step: int) -> Path:
+    """Where a run restarted after step ``step`` writes a time series: ``name.restart-000012.bp``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.restart-{int(step):06d}{path.suffix}")
+
+
+class _TimeSeries(Output):
+    """Frames of functions at the initial state and at every step (or at given times); see :class:`VTX`."""
 
     def __init__(
         self,
         path: str | Path,
-        functions: Sequence[fem.Function] | None = None,
-        *,
-        times: Sequence[float] | None = None,
-        role: str = "vtx",
+        functions: Sequence[fem.Function] | None,
+        times: Sequence[float] | None,
+        role: str,
     ):
         self.path = Path(path)
         self.functions = None if functions is None else list(functions)
         self._pending = None if times is None else sorted(float(t) for t in times)
         self.role = role
-        self._file: VTXOutput | None = None
+        self._file = None
+        self._parts: list[str] = []
+
+    def _open(self, comm, path: Path, functions: list[fem.Function]):
+        raise NotImplementedError
 
     def start(self, sim) -> None:
-        """Open the file."""
+        """Open the file (on a restart: the continuation file, see :func:`continuation_path`)."""
         functions = self.functions if self.functions is not None else sim.fields.output()
-        self._file = VTXOutput(sim.comm, self.path, functions)
-        sim.files[self.role] = str(self.path)
+        path = self.path if sim.restarted_from is None else continuation_path(self.path, sim.step)
+        self._file = self._open(sim.comm, path, functions)
+        self._parts = [str(path)]
+        sim.files[self.role] = str(path)
 
     def write(self, sim, step: StepRecord | None) -> None:
         """Append a frame (at the initial state, at every step or when passing the next output time)."""
@@ -116,6 +149,81 @@ class VTX(Output):
         if self._file is not None:
             self._file.close()
             self._file = None
+
+    def state(self, sim) -> dict:
+        """The output times still to come and the files written so far."""
+        return {"pending": self._pending, "parts": list(self._parts)}
+
+    def restart(self, sim, state: dict | None) -> None:
+        """Keep the remaining output times; the first frame of the new file is the restart state."""
+        if state is not None:
+            if state.get("pending") is not None and self._pending is not None:
+                self._pending = [float(t) for t in state["pending"]]
+            self._parts = [*state.get("parts", []), *self._parts]
+        self._refresh()
+        self._file.write(sim.time)
+
+    def summary(self, sim, summary: dict) -> dict:
+        """The files of a restarted run (``<role>_parts``, in order)."""
+        return {f"{self.role}_parts": list(self._parts)} if len(self._parts) > 1 else {}
+
+
+class VTX(_TimeSeries):
+    """A VTX (``.bp``) time series for ParaView: the initial state and then every step (or given times).
+
+    Every frame is indexed when it is written (BP4), so a killed run leaves
+    every complete frame readable.
+
+    Args:
+        path: The ``.bp`` folder.
+        functions: What to write; default the simulation's
+            :meth:`~hyperfem.simulation.Fields.output` (displacement; pressure
+            of the three-field problem; velocity of a dynamic run).
+        times: Write only when a step reaches or passes the next of these
+            times (use must-hit times to land on them); ``None``: every step.
+        role: Key in ``sim.files`` (default ``"vtx"``).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        functions: Sequence[fem.Function] | None = None,
+        *,
+        times: Sequence[float] | None = None,
+        role: str = "vtx",
+    ):
+        super().__init__(path, functions, times, role)
+
+    def _open(self, comm, path: Path, functions: list[fem.Function]) -> VTXOutput:
+        return VTXOutput(comm, path, functions)
+
+
+class XDMF(_TimeSeries):
+    """An XDMF (``.xdmf`` + ``.h5``) time series, for tools that read XDMF only.
+
+    Nodal fields are interpolated to the geometry's Lagrange degree (P1),
+    cell-wise constant ones written per cell (:class:`~hyperfem.io.XDMFOutput`);
+    prefer :class:`VTX`, which keeps the degree of the fields.
+
+    Args:
+        path: The ``.xdmf`` file.
+        functions: What to write (default as for :class:`VTX`).
+        times: As for :class:`VTX`.
+        role: Key in ``sim.files`` (default ``"xdmf"``).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        functions: Sequence[fem.Function] | None = None,
+        *,
+        times: Sequence[float] | None = None,
+        role: str = "xdmf",
+    ):
+        super().__init__(path, functions, times, role)
+
+    def _open(self, comm, path: Path, functions: list[fem.Function]) -> XDMFOutput:
+        return XDMFOutput(comm, path, functions)
 
 
 class JSONSummary(Output):
@@ -197,6 +305,94 @@ class CSVLog(Output):
 
         on_rank0(sim.comm, append, f"cannot write {self.path}")
 
+    def restart(self, sim, state: dict | None) -> None:
+        """Rewrite the file with the rows kept in the checkpoint."""
+        rows = [_flatten(row) for row in sim.rows]
+        self._columns = list(rows[0]) if rows else None
+        columns = self._columns
+
+        def rewrite() -> None:
+            with self.path.open("w", newline="") as fh:
+                writer = csv.DictWriter(fh, fieldnames=columns or [], extrasaction="ignore")
+                if columns:
+                    writer.writeheader()
+                writer.writerows(rows)
+
+        on_rank0(sim.comm, rewrite, f"cannot write {self.path}")
+
+
+def _norms(records) -> list[list[float]]:
+    return [[float(x) for x in r.residual_norms] for r in records]
+
+
+class ConvergenceLog(Output):
+    """The Newton residual norms of every recorded state, one JSON line each (appended, flushed).
+
+    A line is ``{"step", "time", "dt", "accepted": [[|r_0|, |r_1|, ...], ...],
+    "rejected": [[...], ...], "reasons": [...]}``: the residual 2-norm at each
+    Newton iterate of the solves that produced the accepted state (two with
+    step doubling), of the attempts that were cut back, and the SNES reasons
+    of the accepted solves. Read it with :func:`read_convergence`; plot it with
+    :func:`hyperfem.simulation.plots.newton_convergence`.
+
+    Args:
+        path: The ``.jsonl`` file (overwritten at the start).
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+
+    def start(self, sim) -> None:
+        """Check the folder and empty the file (on every rank) before any solve."""
+        ensure_output_dir(self.path.parent, sim.comm)
+        sim.files["convergence"] = str(self.path)
+        if sim.restarted_from is None:
+            on_rank0(sim.comm, lambda: self.path.write_text(""), f"cannot write {self.path}")
+
+    def write(self, sim, step: StepRecord | None) -> None:
+        """Append the line of the current state."""
+        if step is None:
+            initial = [sim.initial_solve] if sim.initial_solve is not None else []
+            line = {"step": 0, "time": sim.time, "dt": 0.0, "accepted": _norms(initial), "rejected": []}
+            line["reasons"] = [r.reason_name for r in initial]
+        else:
+            line = {
+                "step": step.step,
+                "time": step.time,
+                "dt": step.dt,
+                "accepted": _norms(step.solve_records),
+                "rejected": _norms(step.failed),
+                "reasons": [r.reason_name for r in step.solve_records],
+            }
+        text = json.dumps(line, allow_nan=True) + "\n"
+
+        def append() -> None:
+            with self.path.open("a") as fh:
+                fh.write(text)
+
+        on_rank0(sim.comm, append, f"cannot write {self.path}")
+
+    def restart(self, sim, state: dict | None) -> None:
+        """Keep the lines of the steps up to the restart (those of later, lost steps are dropped)."""
+        upto = sim.step
+
+        def trim() -> None:
+            kept = [line for line in read_convergence(self.path) if line["step"] <= upto] if self.path.is_file() else []
+            self.path.write_text("".join(json.dumps(line) + "\n" for line in kept))
+
+        on_rank0(sim.comm, trim, f"cannot write {self.path}")
+
+
+def read_convergence(path: str | Path) -> list[dict]:
+    """The lines of a :class:`ConvergenceLog` file (an incomplete last line, from a killed run, is skipped)."""
+    lines = []
+    for text in Path(path).read_text().splitlines():
+        try:
+            lines.append(json.loads(text))
+        except ValueError:
+            continue
+    return lines
+
 
 class Progress(Output):
     """Print a line per recorded state on rank 0.
@@ -255,6 +451,17 @@ class Recorder(Output):
         make = getattr(self.recorder, "summary", None)
         return dict(make()) if callable(make) else {}
 
+    def state(self, sim) -> dict | None:
+        """The recorder's ``rows`` list, if it keeps one (e.g. :class:`~hyperfem.dynamics.Diagnostics`)."""
+        rows = getattr(self.recorder, "rows", None)
+        return {"rows": list(rows)} if isinstance(rows, list) else None
+
+    def restart(self, sim, state: dict | None) -> None:
+        """Give the recorder back its rows."""
+        rows = getattr(self.recorder, "rows", None)
+        if state is not None and isinstance(rows, list):
+            rows[:] = state["rows"]
+
 
 class Derived(Output):
     """A summary entry computed from the entries before it (e.g. a convergence statement).
@@ -270,7 +477,7 @@ class Derived(Output):
 
     def summary(self, sim, summary: dict) -> dict:
         """``{name: value(summary)}`` once a step is accepted."""
-        return {self.name: self.value(summary)} if sim.steps else {}
+        return {self.name: self.value(summary)} if sim.step > 0 else {}
 
 
 def format_summary(summary: dict) -> str:
@@ -287,6 +494,8 @@ def format_summary(summary: dict) -> str:
         lines.append(f"  convergence: {summary['convergence']}")
     if not summary.get("completed", True):
         lines.append(f"  stopped at t = {summary['time']:g}: {summary.get('error')}")
+    if summary.get("restarted_from"):
+        lines.append(f"  restarted from {summary['restarted_from']}")
     lines.append(f"  wall time (stepping, after form compilation): {summary['wall_time']:.2f} s")
     files = summary.get("files", {})
     if files:

@@ -16,21 +16,31 @@ after every accepted step it
    VTX frames, the CSV line, the JSON summary.
 
 So every accepted step is on disk before the next one starts. When a step
-fails after all cutbacks the outputs are closed, the summary says
-``"completed": false`` and the :class:`~hyperfem.errors.ConvergenceError`
-is raised again, naming where the completed steps are.
+fails after all cutbacks the outputs are closed (a
+:class:`~hyperfem.simulation.checkpoint.Checkpoint` among them writes the
+last converged state), the summary says ``"completed": false`` and the
+:class:`~hyperfem.errors.ConvergenceError` is raised again, naming where the
+completed steps and the checkpoint are.
+
+``run(restart=path)`` continues from a checkpoint instead of the initial
+state (:mod:`hyperfem.simulation.checkpoint`): same problem, solver, outputs
+and policy as the run that wrote it (the end time may differ), same mesh and
+number of ranks. Steps are numbered on from the checkpoint, and the rows,
+summary and files continue those of the first run.
 """
 
 from __future__ import annotations
 
 import time as _time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError
+from hyperfem.simulation import checkpoint as _checkpoint
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
 
@@ -39,6 +49,18 @@ __all__ = ["Fields", "Simulation"]
 
 def _is_time_step(problem) -> bool:
     return all(callable(getattr(problem, name, None)) for name in ("prepare", "commit", "step_inputs"))
+
+
+def _matched_states(outputs: Sequence, saved: list[dict]) -> list[dict | None]:
+    """The saved state of each output: the k-th output of a type gets the k-th saved state of that type."""
+    by_type: dict[str, list] = {}
+    for entry in saved:
+        by_type.setdefault(entry["type"], []).append(entry["state"])
+    out = []
+    for output in outputs:
+        states = by_type.get(type(output).__name__, [])
+        out.append(states.pop(0) if states else None)
+    return out
 
 
 class Fields:
@@ -103,13 +125,28 @@ class Simulation:
         info: Extra summary entries (case, parameters).
         solve_initial: Solve for equilibrium at the start time before the
             first step (a preloaded or passive initial state); it is row 0.
+        case: JSON-serialisable description of the model that a restart must
+            match (e.g. the mesh, material, boundary-condition and load
+            sections of a case file); its hash is part of every checkpoint's
+            fingerprint. Default: ``info``. Plain data only (numbers, strings,
+            lists, dicts): anything else is hashed by ``str()``, which may
+            name memory addresses that differ between processes.
 
     Attributes:
-        rows: One dict per recorded state (row 0: the initial state).
-        steps: The accepted :class:`~hyperfem.solver.stepping.StepRecord`.
+        rows: One dict per recorded state (row 0: the initial state), those
+            before a restart included.
+        steps: The :class:`~hyperfem.solver.stepping.StepRecord` accepted in
+            this process (after a restart: since the restart).
         files: Files the outputs write, by role (``"summary"``, ``"csv"``, VTX names).
         completed: Whether the run reached the end.
         error: Why it stopped, or ``None``.
+        stepper: The step-size control's state after the last accepted step
+            (:class:`~hyperfem.simulation.checkpoint.StepperState`).
+        restarted_from: The checkpoint this run continued from, or ``None``.
+        initial_solve: The record of the initial solve (``solve_initial``), or ``None``.
+        state_converged: After a failure: whether the problem holds the last
+            converged state (a failed step after all cutbacks), so that it
+            may be checkpointed.
     """
 
     def __init__(
@@ -122,6 +159,7 @@ class Simulation:
         name: str = "run",
         info: dict | None = None,
         solve_initial: bool = False,
+        case=None,
     ):
         self.problem = problem
         self.solver = solver
@@ -130,6 +168,7 @@ class Simulation:
         self.name = name
         self.info = dict(info or {})
         self.solve_initial = solve_initial
+        self.case = self.info if case is None else case
         self.comm = problem.domain.comm
         self.fields = Fields(problem)
         self.stage = None
@@ -138,8 +177,14 @@ class Simulation:
         self.files: dict[str, str] = {}
         self.completed = False
         self.error: str | None = None
+        self.stepper = _checkpoint.StepperState.start(self.policy)
+        self.restarted_from: str | None = None
+        self.initial_solve: SolveRecord | None = None
+        self.state_converged = False
+        self._offset = 0
         self._start = None
         self._wall = 0.0
+        self._wall_before = 0.0
 
     # -- state -----------------------------------------------------------------------
     @property
@@ -153,10 +198,18 @@ class Simulation:
         return self.stage.time if self.stage is not None else float(self.problem.time)
 
     @property
+    def step(self) -> int:
+        """Accepted steps so far (those before a restart included)."""
+        return self._offset + len(self.steps)
+
+    @property
     def wall_time(self) -> float:
-        """Seconds spent stepping so far, on the slowest rank (collective; forms are compiled before)."""
+        """Seconds spent stepping so far, on the slowest rank (collective; forms are compiled before).
+
+        After a restart: the first run's time up to its checkpoint plus this one's.
+        """
         local = self._wall if self._start is None else _time.perf_counter() - self._start
-        return self.comm.allreduce(local, op=MPI.MAX)
+        return self._wall_before + self.comm.allreduce(local, op=MPI.MAX)
 
     @property
     def dofs(self) -> int:
@@ -165,14 +218,35 @@ class Simulation:
         return int(dofmap.index_map.size_global * dofmap.index_map_bs)
 
     # -- running ---------------------------------------------------------------------
-    def run(self) -> dict:
-        """Record the initial state, step to the policy's end, and return the summary.
+    def run(self, restart: str | Path | None = None) -> dict:
+        """Record the initial state (or continue from a checkpoint), step to the policy's end, return the summary.
+
+        Args:
+            restart: A checkpoint to continue from: a
+                :class:`~hyperfem.simulation.checkpoint.Checkpoint` folder (its
+                latest) or one of its step folders. The run must be built as
+                the one that wrote it (same mesh, ranks, problem and case).
 
         Raises:
             ConvergenceError: A step failed after all cutbacks (the summary,
-                with ``"completed": false``, is written first).
+                with ``"completed": false``, and a checkpoint of the last
+                converged state, if a :class:`~hyperfem.simulation.checkpoint.Checkpoint`
+                is among the outputs, are written first; the message names them).
+            CheckpointError: ``restart`` is not a readable checkpoint of this run
+                (before any output is opened).
             OutputError: An output folder cannot be written (before any solve).
         """
+        policy = self.policy
+        meta = None
+        if restart is not None:
+            meta = _checkpoint.load_checkpoint(self, restart)
+            self.restarted_from = meta["path"]
+            self.rows = [dict(row) for row in meta["rows"]]
+            self._offset = int(meta["step"])
+            self.stepper = _checkpoint.StepperState(**meta["stepper"])
+            self._wall_before = float(meta.get("wall_time", 0.0))
+            policy = self.stepper.resumed(self.policy)
+            self.fields.refresh()
         self.stage = (DynamicStage if self.kind == "dynamic" else QuasiStaticStage)(self.problem, self.solver)
         started = []
         try:
@@ -180,27 +254,45 @@ class Simulation:
                 output.start(self)
                 started.append(output)
             self._start = _time.perf_counter()
-            initial = self.solver.solve(raise_on_failure=True) if self.solve_initial else None
-            self._accept(None, initial)
-            run_steps(self.stage, self.policy, lambda record: self._accept(record, None))
+            if meta is None:
+                self.initial_solve = self.solver.solve(raise_on_failure=True) if self.solve_initial else None
+                self._accept(None, self.initial_solve)
+            else:
+                states = _matched_states(self.outputs, meta.get("outputs", []))
+                for output, state in zip(self.outputs, states, strict=True):
+                    output.restart(self, state)
+            run_steps(self.stage, policy, lambda record: self._accept(record, None))
             self.completed = True
         except ConvergenceError as exc:
             self.error = str(exc)
-            where = f" (completed steps written to {self.files['summary']})" if "summary" in self.files else ""
-            raise ConvergenceError(f"{self.name}: {exc}{where}", exc.time, exc.history) from exc
+            self.state_converged = bool(self.rows)
+            self._close(started)
+            where = []
+            if "summary" in self.files:
+                where.append(f"completed steps written to {self.files['summary']}")
+            if "checkpoint" in self.files and Path(self.files["checkpoint"]).name.startswith("step-"):
+                where.append(f"last converged state checkpointed in {self.files['checkpoint']}")
+            detail = f" ({'; '.join(where)})" if where else ""
+            raise ConvergenceError(f"{self.name}: {exc}{detail}", exc.time, exc.history) from exc
         except Exception as exc:
             self.error = f"{type(exc).__name__}: {exc}"
             raise
         finally:
-            if self._start is not None:
-                self._wall, self._start = _time.perf_counter() - self._start, None
-            for output in started:
-                output.close(self)
+            self._close(started)
         return self.summary()
+
+    def _close(self, started: list) -> None:
+        """Stop the clock and close the outputs still open (in order; each once)."""
+        if self._start is not None:
+            self._wall, self._start = _time.perf_counter() - self._start, None
+        while started:
+            started.pop(0).close(self)
 
     def _accept(self, record: StepRecord | None, initial: SolveRecord | None) -> None:
         if record is not None:
+            record.step += self._offset
             self.steps.append(record)
+            self.stepper = self.stepper.after(record, self.policy)
         self.fields.refresh()
         solve = record.solve if record is not None else initial
         row = {
@@ -233,7 +325,8 @@ class Simulation:
             rows: Include every row (``"rows"``).
         """
         base = self.fields.base
-        its = [r.iterations for r in self.steps]
+        stepped = self.rows[1:]
+        its = [int(r["newton_iterations"]) for r in stepped]
         summary = {
             "name": self.name,
             "stage": self.kind,
@@ -249,15 +342,16 @@ class Simulation:
             "petsc_options": {k: str(v) for k, v in self.solver.options.items()},
             "energy_line_search": self.solver.energy_line_search,
             "linear_solver": self.solver.linear_solver_name,
-            "steps": len(self.steps),
+            "steps": self.step,
             "newton_iterations": its,
             "total_newton_iterations": int(sum(its)),
             "total_krylov_iterations": int(sum(r.get("krylov_iterations", 0) for r in self.rows)),
             "pc_setup_time": float(sum(r.get("pc_setup_time", 0.0) for r in self.rows)),
-            "rejected": int(sum(r.rejected for r in self.steps)),
-            "solves": int(sum(r.solves for r in self.steps)),
+            "rejected": int(sum(r["rejected"] for r in stepped)),
+            "solves": int(sum(r["solves"] for r in stepped)),
             "wall_time": self.wall_time,
             "files": dict(self.files),
+            "restarted_from": self.restarted_from,
             **self.info,
         }
         if self.kind == "quasi-static":

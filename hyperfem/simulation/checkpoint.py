@@ -1,0 +1,305 @@
+r"""Checkpoint and restart of a :class:`~hyperfem.simulation.Simulation`.
+
+A checkpoint holds everything a run needs to continue as if it had never
+stopped:
+
+* the state: the unknown ``u`` (for the three-field problem the whole mixed
+  vector :math:`(u, p, \theta - 1)`), and for a dynamic run the velocity
+  ``v`` and acceleration ``a`` (time :math:`t_n`); stored by
+  :mod:`hyperfem.io.checkpoint` (one ``.npz`` per rank, owned dof values
+  keyed by global dof index);
+* the time (load factor) and the count of accepted steps;
+* the state of the step-size control (:class:`StepperState`): the nominal
+  increment, the run of easy steps towards the next growth, the attempts spent;
+* the rows recorded so far and what each output keeps
+  (:meth:`~hyperfem.simulation.outputs.Output.state`; on a restart the k-th
+  output of a class gets the state of the k-th output of that class, so
+  outputs may be added or removed);
+* a fingerprint of the run (:func:`fingerprint`): mesh, spaces, ranks, stage
+  and a hash of the case description. A restart that does not match raises
+  :class:`~hyperfem.io.CheckpointError` naming the first difference.
+
+:class:`Checkpoint` is the output that writes them: every ``every`` steps, at
+the end, and after a failed step (after all cutbacks) of the last converged
+state. ``Simulation.run(restart=path)`` continues from one; the restarted run
+repeats the arithmetic of the uninterrupted one (same mesh, same number of
+ranks), so its rows and final state agree to round-off — in practice bit for
+bit.
+
+Growth of the increment depends on how many easy steps came before
+(``grow_after``), which :func:`~hyperfem.solver.stepping.run_steps` starts
+counting afresh. A checkpoint due every ``every`` steps is therefore taken at
+the first step at which that count does not matter (:attr:`StepperState.settled`:
+the count is zero, or growth cannot change the increment), at most
+``grow_after - 1`` steps late; the checkpoint of a failure is taken where the
+run stopped and records ``"exact": false`` when it is not settled.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from hyperfem.errors import ParameterError
+from hyperfem.io.checkpoint import CheckpointError, read_functions, read_meta, step_folder_name, write_checkpoint
+from hyperfem.io.results import ensure_output_dir, jsonable
+from hyperfem.simulation.outputs import Output
+from hyperfem.solver.stepping import StepPolicy, StepRecord
+
+__all__ = [
+    "Checkpoint",
+    "CheckpointError",
+    "StepperState",
+    "case_hash",
+    "checkpoint_functions",
+    "fingerprint",
+    "load_checkpoint",
+    "save_checkpoint",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class StepperState:
+    """The state of the increment control of :func:`~hyperfem.solver.stepping.run_steps` between two steps.
+
+    :meth:`after` replays the control's rules on an accepted step: a rejected
+    attempt makes the shortened step the nominal increment and resets the
+    count of easy steps; an easy step (no solve above ``easy_iterations``)
+    adds one; after ``grow_after`` of them the increment grows by ``growth``,
+    up to ``max_increment``.
+
+    Attributes:
+        increment: Nominal increment of the next step (> 0).
+        streak: Consecutive easy steps since the last growth or reset.
+        attempts: Attempts spent so far (accepted and rejected).
+    """
+
+    increment: float
+    streak: int = 0
+    attempts: int = 0
+
+    @classmethod
+    def start(cls, policy: StepPolicy) -> StepperState:
+        """The state before the first step."""
+        return cls(min(policy.increment, policy.max_step))
+
+    def after(self, record: StepRecord, policy: StepPolicy) -> StepperState:
+        """The state after the accepted step ``record``."""
+        dt, streak = self.increment, self.streak
+        if record.rejected:
+            dt, streak = abs(record.dt), 0
+        easy = policy.easy_iterations is None or max(
+            (r.iterations for r in record.solve_records), default=0
+        ) <= policy.easy_iterations
+        streak = streak + 1 if easy else 0
+        if streak >= policy.grow_after:
+            dt, streak = min(dt * policy.growth, policy.max_step), 0
+        return StepperState(dt, streak, self.attempts + record.rejected + 1)
+
+    def settled(self, policy: StepPolicy) -> bool:
+        """Whether a restart here steps exactly as the uninterrupted run (the streak cannot matter)."""
+        return self.streak == 0 or policy.growth == 1.0 or self.increment >= policy.max_step
+
+    def resumed(self, policy: StepPolicy) -> StepPolicy:
+        """``policy`` continued from this state: its increment, effective bounds and the attempts left."""
+        return dataclasses.replace(
+            policy,
+            increment=self.increment,
+            min_increment=policy.min_step,
+            max_increment=policy.max_step,
+            max_steps=max(1, policy.max_steps - self.attempts),
+        )
+
+
+def case_hash(case) -> str:
+    """SHA-256 of the canonical JSON of a case description (sorted keys; non-JSON values by ``str``)."""
+    text = json.dumps(jsonable(case), sort_keys=True, default=str, allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def checkpoint_functions(sim) -> dict[str, fem.Function]:
+    """What a checkpoint of ``sim`` stores: ``u``, and ``v``, ``a`` for a dynamic run."""
+    problem = sim.problem
+    functions = {"u": problem.u}
+    if sim.kind == "dynamic":
+        functions.update(v=problem.v, a=problem.a)
+    return functions
+
+
+def _geometry_sums(mesh) -> list[float]:
+    """Partition-independent sums over the owned vertices: coordinates and their squares."""
+    n = mesh.geometry.index_map().size_local
+    x = mesh.geometry.x[:n]
+    local = np.array([x.sum(), (x**2).sum()], dtype=float)
+    return [float(v) for v in mesh.comm.allreduce(local, op=MPI.SUM)]
+
+
+def fingerprint(sim) -> dict:
+    """What must agree between a run and the checkpoint it restarts from (collective).
+
+    Returns:
+        ``stage``, ``ranks``, ``cells``, ``vertices``, ``geometry`` (sums of
+        the vertex coordinates and their squares), ``dofs``, ``element`` (of
+        the unknown), ``degree`` and ``case`` (:func:`case_hash` of the
+        simulation's ``case``).
+    """
+    base = sim.fields.base
+    mesh = base.domain.mesh
+    tdim = mesh.topology.dim
+    return {
+        "stage": sim.kind,
+        "ranks": sim.comm.size,
+        "cells": int(mesh.topology.index_map(tdim).size_global),
+        "vertices": int(mesh.topology.index_map(0).size_global),
+        "geometry": _geometry_sums(mesh),
+        "dofs": sim.dofs,
+        "element": str(sim.problem.u.function_space.ufl_element()),
+        "degree": int(base.degree),
+        "case": case_hash(sim.case),
+    }
+
+
+def _mismatch(stored: dict, current: dict) -> str:
+    labels = {
+        "stage": "stage",
+        "ranks": "number of MPI ranks",
+        "cells": "mesh cells",
+        "vertices": "mesh vertices",
+        "geometry": "mesh coordinates",
+        "dofs": "unknowns",
+        "element": "element",
+        "degree": "displacement degree",
+        "case": "case (hash of the case description)",
+    }
+    for key, label in labels.items():
+        a, b = stored.get(key), current[key]
+        if key == "geometry":
+            same = a is not None and np.allclose(a, b, rtol=1e-12, atol=1e-12 * max(1.0, abs(b[1])) ** 0.5)
+        else:
+            same = a == b
+        if not same:
+            if key in ("geometry", "case"):
+                return f"the {label} differs"
+            return f"{label}: {a} in the checkpoint, {b} in this run"
+    return ""
+
+
+def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2) -> Path:
+    """Write a checkpoint of the accepted state of ``sim`` (collective).
+
+    Returns:
+        The checkpoint's step folder.
+    """
+    meta = {
+        "name": sim.name,
+        "fingerprint": fingerprint(sim),
+        "time": sim.time,
+        "completed": sim.completed,
+        "exact": sim.stepper.settled(sim.policy),
+        "stepper": dataclasses.asdict(sim.stepper),
+        "policy": {f.name: getattr(sim.policy, f.name) for f in dataclasses.fields(sim.policy)},
+        "wall_time": sim.wall_time,
+        "rows": sim.rows,
+        "outputs": [{"type": type(o).__name__, "state": o.state(sim)} for o in sim.outputs],
+    }
+    return write_checkpoint(folder, sim.step, checkpoint_functions(sim), meta, sim.comm, keep=keep)
+
+
+def load_checkpoint(sim, path: str | Path) -> dict:
+    """Bring ``sim`` to the state of a checkpoint (collective); returns its record.
+
+    Sets the state functions, the time (loads, boundary values and updaters
+    follow), the rows, the step count and the step-size control. The outputs'
+    states are in the record (``"outputs"``), for
+    :meth:`~hyperfem.simulation.outputs.Output.restart`.
+
+    Raises:
+        CheckpointError: On every rank, when there is no readable checkpoint
+            at ``path`` or it does not match the run (:func:`fingerprint`).
+    """
+    meta = read_meta(path, sim.comm)
+    where = meta["path"]
+    problem = f"{where} does not match this run"
+    mismatch = _mismatch(meta.get("fingerprint", {}), fingerprint(sim))
+    if mismatch:
+        raise CheckpointError(f"cannot restart from {problem}: {mismatch}")
+    read_functions(where, checkpoint_functions(sim), sim.comm)
+    t = float(meta["time"])
+    if sim.kind == "dynamic":
+        from hyperfem.dynamics.incremental import DynamicState
+
+        p = sim.problem
+        p.restore(DynamicState(t, p.u.x.array, p.v.x.array, p.a.x.array))
+    else:
+        sim.problem.set_time(t)
+    return meta
+
+
+class Checkpoint(Output):
+    """Checkpoints of a run: every ``every`` accepted steps, at the end, and of the last converged state on failure.
+
+    Each is a folder ``step-NNNNNN`` under ``folder`` (:mod:`hyperfem.io.checkpoint`),
+    ``folder/latest.json`` names the newest; continue with
+    ``Simulation.run(restart=folder)``. A checkpoint due every ``every``
+    steps waits for a step at which the step-size control is settled (module
+    docstring).
+
+    Args:
+        folder: Where to write.
+        every: Steps between checkpoints; ``None``: only at the end and on failure.
+        keep: Checkpoints kept (older ones are removed); ``None``: all.
+        final: Write one at the end of a completed run.
+
+    Raises:
+        ParameterError: ``every`` or ``keep`` is not an integer >= 1 (or ``None``).
+    """
+
+    def __init__(self, folder: str | Path, *, every: int | None = 10, keep: int | None = 2, final: bool = True):
+        for name, value in (("every", every), ("keep", keep)):
+            if value is not None and not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+                raise ParameterError(f"Checkpoint: {name} must be an integer >= 1 or None, got {value!r}")
+        self.folder = Path(folder)
+        self.every = every
+        self.keep = keep
+        self.final = final
+        self.last: int | None = None
+        self.path: Path | None = None
+
+    def start(self, sim) -> None:
+        """Check the folder (on every rank) before any solve."""
+        ensure_output_dir(self.folder, sim.comm)
+        sim.files["checkpoint"] = str(self.folder)
+        self.last = 0
+
+    def _save(self, sim) -> None:
+        self.path = save_checkpoint(sim, self.folder, keep=self.keep)
+        self.last = sim.step
+        sim.files["checkpoint"] = str(self.path)
+
+    def write(self, sim, step: StepRecord | None) -> None:
+        """Save when ``every`` steps have passed since the last checkpoint and the control is settled."""
+        if step is None or self.every is None:
+            return
+        if sim.step - self.last >= self.every and sim.stepper.settled(sim.policy):
+            self._save(sim)
+
+    def close(self, sim) -> None:
+        """At the end, or after a failed step: the last converged state (not after other errors)."""
+        if sim.step == self.last and self.path is not None:
+            return
+        if (sim.completed and self.final) or (not sim.completed and sim.state_converged and sim.rows):
+            self._save(sim)
+
+    def restart(self, sim, state: dict | None) -> None:
+        """Count the steps from the restart."""
+        self.last = sim.step
+
+    def path_of(self, step: int) -> Path:
+        """The folder of the checkpoint after ``step``."""
+        return self.folder / step_folder_name(step)

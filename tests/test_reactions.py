@@ -1,0 +1,193 @@
+r"""Reaction forces and moments of every Dirichlet boundary, from the residual (:mod:`hyperfem.simulation.reactions`).
+
+Checks against closed forms and balance laws:
+
+* the bent cantilever is statically determinate: the clamp's force is
+  :math:`-\int_\Gamma t\,dA`, and its moment balances that of the traction
+  :math:`\int_\Gamma (x - c)\times t\,dA` in the deformed configuration (the
+  internal forces of an objective energy carry no moment);
+* uniaxial stretch between rollers is homogeneous, so the force on the pulled
+  face is :math:`P_{11}` of the exact state (unit area), the opposite roller
+  carries :math:`-P_{11}`, the lateral rollers nothing; components a roller
+  does not hold are reported as zero;
+* the three-field problem gives the force of :class:`~hyperfem.problem.ReactionForce`;
+* in a dynamic run the supports carry the rate of change of momentum:
+  :math:`F = \int\rho\,(a + \alpha v)\,dX` when no other force acts
+  (:math:`\alpha` the viscous damping), and the free rows of the balance vanish.
+
+Every check holds on one and on two ranks.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ufl
+from mpi4py import MPI
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+import hyperfem as hf
+from hyperfem import dynamics as dyn
+from hyperfem.cases import BEND_TRACTION, bend_load
+from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
+from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem
+from hyperfem.simulation import DirichletReactions, Reaction, Reactions, Simulation
+
+PARAMS = hf.materials.LameParameters.from_youngs(E=1e6, nu=0.3)
+MESH = Path(__file__).resolve().parent.parent / "meshes" / "beam_h2.msh"
+
+
+def psi(F):
+    return hf.materials.neo_hookean(F, PARAMS)
+
+
+def _assemble(expr, measure, comm) -> float:
+    return comm.allreduce(fem.assemble_scalar(fem.form(expr * measure)), op=MPI.SUM)
+
+
+def test_bend_reaction_is_minus_the_load_and_balances_its_moment(comm):
+    domain = hf.read_mesh(MESH, comm)
+    load = bend_load()
+    problem = hf.HyperelasticProblem(domain, psi, bcs=[hf.Clamp("clamped")], loads=[load])
+    reactions = Reactions()
+    outputs = [reactions, Reaction("clamped")]
+    summary = Simulation(problem, hf.NewtonSolver(problem), hf.StepPolicy(increment=0.5), outputs).run()
+    t = np.array(BEND_TRACTION)
+    ds = domain.ds("free_end")
+    area = _assemble(1.0, ds, comm)
+    force = np.array(summary["reactions"]["clamped"]["force"])
+    assert force == pytest.approx(-t * area, rel=1e-7, abs=1e-7 * np.abs(t).max() * area)
+    # the column of the internal-energy Reaction measure is the same force (no load on the clamp)
+    assert force == pytest.approx(np.array(summary["reaction_clamped"]), rel=1e-10, abs=1e-9)
+    # moment balance about the clamp's centroid, in the deformed configuration
+    c = np.array(summary["reactions"]["clamped"]["point"])
+    assert c == pytest.approx([-5.0, 0.0, 0.0], abs=1e-12)  # the clamp is the face x = -5 of the 10 x 4 x 4 beam
+    x = ufl.SpatialCoordinate(domain.mesh) + problem.u - ufl.as_vector(c.tolist())
+    applied = np.array([_assemble(ufl.cross(x, ufl.as_vector(t.tolist()))[i], ds, comm) for i in range(3)])
+    moment = np.array(summary["reactions"]["clamped"]["moment"])
+    assert np.abs(applied).max() > 1e4  # about 5e3 Pa * 16 m^2 * 10 m
+    assert np.abs(moment + applied).max() < 1e-6 * np.abs(applied).max()
+    # one support: the total is the clamp's (its moment about the origin)
+    row = summary["rows"][-1]
+    assert [row[f"reaction_total_F{a}"] for a in "xyz"] == pytest.approx(force.tolist(), rel=1e-12, abs=1e-9)
+    assert row["reaction_clamped_Fy"] == pytest.approx(force[1])
+    assert summary["rows"][0]["reaction_clamped_Fy"] == 0.0  # unloaded initial state
+
+
+def _uniaxial(stretch: float) -> tuple[float, float]:
+    r""":math:`(P_{11}, \lambda_2)` of neo-Hookean uniaxial stress (the lateral stretch from :math:`P_{22} = 0`)."""
+    mu, lm = PARAMS.mu, PARAMS.lmbda
+
+    def p(l1, l2, k):
+        lnJ = math.log(l1 * l2 * l2)
+        lk = (l1, l2, l2)[k]
+        return mu * lk - mu / lk + lm * lnJ / lk
+
+    l2 = 1.0
+    for _ in range(50):
+        h = 1e-7
+        f = p(stretch, l2, 1)
+        l2 -= f / ((p(stretch, l2 + h, 1) - f) / h)
+    assert abs(p(stretch, l2, 1)) < 1e-6 * mu
+    return p(stretch, l2, 0), l2
+
+
+def test_rollers_carry_the_homogeneous_stress(comm):
+    stretch = 1.2
+    domain = unit_cube(2, comm)
+    problem = hf.HyperelasticProblem(domain, psi, bcs=uniaxial_rollers(stretch))
+    reactions = DirichletReactions(problem)
+    assert reactions.names == ["x0", "y0", "z0", "x1", "total"]
+    hf.solve_quasistatic(hf.NewtonSolver(problem))
+    r = reactions()
+    P11, l2 = _uniaxial(stretch)
+    assert r["x1"].force[0] == pytest.approx(P11, rel=1e-8)  # unit face: force = P11
+    assert r["x0"].force[0] == pytest.approx(-P11, rel=1e-8)
+    assert abs(r["y0"].force[1]) < 1e-8 * P11 and abs(r["z0"].force[2]) < 1e-8 * P11
+    # a roller reports only the component it holds
+    assert r["x1"].force[1] == 0.0 and r["x1"].force[2] == 0.0 and r["y0"].force[0] == 0.0
+    # uniform stress: the force acts at the face's current centroid (stretch, l2/2, l2/2), the
+    # moment about its reference centroid (1, 1/2, 1/2) is that of the lateral contraction
+    assert r["x1"].point.tolist() == pytest.approx([1.0, 0.5, 0.5])
+    arm = np.array([stretch, 0.5 * l2, 0.5 * l2]) - r["x1"].point
+    expected = np.cross(arm, [P11, 0.0, 0.0])
+    assert np.abs(expected).max() > 1e-2 * P11
+    assert r["x1"].moment == pytest.approx(expected, rel=1e-7, abs=1e-8 * P11)
+    assert np.abs(r["total"].force).max() < 1e-8 * P11
+
+
+def test_unknown_boundary_is_refused(comm):
+    domain = unit_cube(1, comm)
+    problem = hf.HyperelasticProblem(domain, psi, bcs=[hf.Clamp("x0")])
+    with pytest.raises(hf.ParameterError, match="boundary 'x1' has no Dirichlet condition \\(held boundaries: x0\\)"):
+        DirichletReactions(problem, ["x1"])
+    with pytest.raises(hf.ParameterError, match="point of 'x0' must be 1 to 3 finite numbers"):
+        DirichletReactions(problem, points={"x0": (0.0, float("nan"))})
+
+
+def test_mixed_reaction_is_the_reaction_force(comm):
+    mesh = dmesh.create_box(comm, [np.zeros(3), np.array([1.0, 0.3, 0.3])], [4, 1, 1])
+    domain = hf.Domain.from_locators(
+        mesh, {"left": lambda x: np.isclose(x[0], 0.0), "right": lambda x: np.isclose(x[0], 1.0)}
+    )
+    material = SplitEnergy(psi, 50.0 * PARAMS.mu)
+    traction = (0.0, 0.0, -1e3)
+    problem = solid_problem(
+        domain, material, formulation="mixed", bcs=[hf.Clamp("left")], loads=[hf.DeadTraction("right", traction)]
+    )
+    reactions = DirichletReactions(problem, total=False)
+    hf.solve_quasistatic(hf.NewtonSolver(problem))
+    force = reactions()["left"].force
+    assert force == pytest.approx(ReactionForce(problem, "left")(), rel=1e-10, abs=1e-8)
+    assert force == pytest.approx([0.0, 0.0, 1e3 * 0.09], rel=1e-7, abs=1e-6)
+
+
+def _strip(comm, damping):
+    mesh = dmesh.create_rectangle(comm, [[0.0, 0.0], [4.0, 1.0]], [8, 2], dmesh.CellType.triangle)
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+    base = hf.HyperelasticProblem(domain, psi, bcs=[hf.Clamp("left")])
+    problem = dyn.IncrementalProblem(base, dyn.Newmark(), dyn.MassDensity(1000.0), dyn.viscous_damping(damping))
+    problem.v.interpolate(lambda x: np.vstack([np.zeros(x.shape[1]), 4.0 * (x[0] / 4.0) ** 2]))
+    problem.initial_acceleration()
+    return problem
+
+
+def test_dynamic_reaction_is_the_rate_of_momentum(comm):
+    alpha = 0.5
+    problem = _strip(comm, alpha)
+    domain = problem.domain
+    rho = 1000.0
+    momentum_rate = fem.form(rho * (problem.a + alpha * problem.v)[1] * ufl.dx(domain=domain.mesh))
+    checked = []
+
+    def check() -> float:
+        r = sim_reactions.reactions
+        residual = r.residual()
+        held = r._dofs["left"]
+        dofmap = problem.u.function_space.dofmap
+        owned = dofmap.index_map.size_local * dofmap.index_map_bs
+        free = np.setdiff1d(np.arange(owned), held)
+        scale = comm.allreduce(float(np.abs(residual[held]).max(initial=0.0)), op=MPI.MAX)
+        worst = comm.allreduce(float(np.abs(residual[free]).max(initial=0.0)), op=MPI.MAX)
+        checked.append((worst, scale))
+        return comm.allreduce(fem.assemble_scalar(momentum_rate), op=MPI.SUM)
+
+    sim_reactions = Reactions(total=False)
+    outputs = [sim_reactions, hf.simulation.Quantity("momentum_rate_y", check), Reaction("left")]
+    stepping = dyn.TimeStepping(dt=0.05, t_end=0.2)
+    summary = Simulation(problem, hf.NewtonSolver(problem), stepping, outputs).run()
+    rows = summary["rows"]
+    assert set(rows[0]) >= {"reaction_left_Fx", "reaction_left_Fy", "reaction_left_Mz"}
+    assert "reaction_left_Fz" not in rows[0]
+    for row in rows:
+        assert row["reaction_left_Fy"] == pytest.approx(row["momentum_rate_y"], rel=1e-6)
+    # inertia at the support matters: the elastic force alone is another number
+    last = rows[-1]
+    assert abs(last["reaction_left_Fy"] - last["reaction_left"][1]) > 1e-3 * abs(last["reaction_left_Fy"])
+    # Newmark balances exactly this residual: the free rows vanish (to the Newton tolerance)
+    for worst, scale in checked[1:]:
+        assert worst < 1e-6 * scale
