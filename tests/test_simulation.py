@@ -16,6 +16,7 @@ import hyperfem.simulation.outputs as outputs_module
 from hyperfem import dynamics as dyn
 from hyperfem.problem import SplitEnergy, solid_problem
 from hyperfem.simulation import (
+    Progress,
     VTX,
     BoundaryAverage,
     CellFields,
@@ -180,3 +181,27 @@ def test_dynamic_run_is_integrate_with_outputs(folder, comm):
     rows = _csv_rows(folder / "strip.csv")
     assert len(rows) == len(history) + 1 and "kinetic_energy" in rows[0] and "p0_y" in rows[0]
     assert (folder / "strip.bp").is_dir()
+
+
+def test_run_reports_mesh_quality_and_warns_on_a_poor_mesh(capsys):
+    """seed 003 §5.6: quality statistics in the summary and a line before the first solve; a flat mesh warns."""
+    from hyperfem.mesh.quality import MeshQualityWarning, mesh_quality
+
+    problem = _pulled(degree=1)
+    summary = Simulation(problem, hf.NewtonSolver(problem), hf.StepPolicy(), [Progress(lambda row: "row")]).run()
+    expected = mesh_quality(problem.domain).stats
+    assert summary["mesh_quality"] == expected
+    assert 0.0 < expected["volume_length"]["min"] <= expected["volume_length"]["mean"] <= 1.0
+    if MPI.COMM_WORLD.rank == 0:
+        assert capsys.readouterr().out.splitlines()[0].startswith("mesh quality")
+
+    flat = dmesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([1.0, 1.0, 0.01])], [2, 2, 1])
+    domain = hf.Domain.from_locators(flat, {"left": lambda x: np.isclose(x[0], 0.0)})
+    squashed = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=[hf.Clamp("left")])
+    sim = Simulation(squashed, hf.NewtonSolver(squashed), hf.StepPolicy())
+    if MPI.COMM_WORLD.rank == 0:
+        with pytest.warns(MeshQualityWarning):
+            sim.run()
+    else:
+        sim.run()
+    assert sim.mesh_quality.stats["volume_length"]["min"] < 0.1

@@ -408,6 +408,12 @@ class Progress(Output):
         self.every = every
         self.initial = initial
 
+    def start(self, sim) -> None:
+        """Print the mesh-quality line before the first solve (rank 0)."""
+        super().start(sim)
+        if sim.mesh_quality is not None and sim.comm.rank == 0:
+            print(sim.mesh_quality.summary_line(), flush=True)
+
     def write(self, sim, step: StepRecord | None) -> None:
         """Print."""
         due = self.initial if step is None else step.step % self.every == 0

@@ -40,6 +40,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError
+from hyperfem.mesh.quality import MeshQuality, mesh_quality
 from hyperfem.simulation import checkpoint as _checkpoint
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
@@ -144,6 +145,10 @@ class Simulation:
             (:class:`~hyperfem.simulation.checkpoint.StepperState`).
         restarted_from: The checkpoint this run continued from, or ``None``.
         initial_solve: The record of the initial solve (``solve_initial``), or ``None``.
+        mesh_quality: The seed 003 §5.6 quality measures of the mesh
+            (:class:`~hyperfem.mesh.quality.MeshQuality`), computed when the run
+            starts; a :class:`~hyperfem.mesh.quality.MeshQualityWarning` is
+            issued for a poor mesh, and the summary holds the statistics.
         state_converged: After a failure: whether the problem holds the last
             converged state (a failed step after all cutbacks), so that it
             may be checkpointed.
@@ -181,6 +186,7 @@ class Simulation:
         self.restarted_from: str | None = None
         self.initial_solve: SolveRecord | None = None
         self.state_converged = False
+        self.mesh_quality: MeshQuality | None = None
         self._offset = 0
         self._start = None
         self._wall = 0.0
@@ -248,6 +254,10 @@ class Simulation:
             policy = self.stepper.resumed(self.policy)
             self.fields.refresh()
         self.stage = (DynamicStage if self.kind == "dynamic" else QuasiStaticStage)(self.problem, self.solver)
+        if self.mesh_quality is None:
+            # seed 003 §5.6: look at the mesh before solving on it (a warning, not an error, when poor)
+            self.mesh_quality = mesh_quality(self.fields.base.domain)
+            self.mesh_quality.warn_if_poor()
         started = []
         try:
             for output in self.outputs:
@@ -352,6 +362,7 @@ class Simulation:
             "wall_time": self.wall_time,
             "files": dict(self.files),
             "restarted_from": self.restarted_from,
+            "mesh_quality": None if self.mesh_quality is None else self.mesh_quality.stats,
             **self.info,
         }
         if self.kind == "quasi-static":
