@@ -129,8 +129,13 @@ bend, P1, this 2-core machine, serial): CG + GAMG vs MUMPS 0.42 / 0.46 s at
 at 28.6k. Below 10^4 LU is as fast and more robust (indefinite tangents do
 not stop it), so small problems keep it."""
 
-MIXED_DIRECT_THRESHOLD = 10_000
-"""Unknowns from which the mixed problem is solved with :data:`MIXED_ITERATIVE` (see ``benchmarks/scale.py --formulation mixed``)."""
+MIXED_DIRECT_THRESHOLD = 40_000
+"""Unknowns from which the mixed problem is solved with :data:`MIXED_ITERATIVE`.
+
+Measured (``benchmarks/scale.py --formulation mixed``, nearly incompressible
+bend, P2/P1/P1, this 2-core machine, serial; ``results/scale_mixed.jsonl``):
+field split vs MUMPS 19.0 / 15.3 s and 0.36 / 0.59 GB at 31k unknowns,
+85 / 146 s and 0.93 / 2.34 GB at 100k. The time ratio crosses 1 near 44k."""
 
 _counter = itertools.count()
 
