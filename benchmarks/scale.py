@@ -44,7 +44,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-EVENTS = ("SNESFunctionEval", "SNESJacobianEval", "PCSetUp", "KSPSolve")
+EVENTS = ("SNESFunctionEval", "SNESJacobianEval", "PCSetUp", "PCSetUpOnBlocks", "KSPSolve")
 
 
 def _box(N: int, comm):

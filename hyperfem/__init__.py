@@ -16,7 +16,14 @@ Runs with output (VTX, probes, reaction forces, per-step CSV/JSON) are a
 :class:`~hyperfem.simulation.Simulation`, for statics and dynamics alike.
 """
 
-from mpi4py import MPI  # noqa: F401  (must precede dolfinx / petsc4py)
+import os
+
+# Threaded OpenBLAS under MUMPS was measured ~10x slower on small ranks: one
+# thread per rank unless the user chose (must be set before numpy/PETSc load).
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from mpi4py import MPI  # noqa: E402, F401  (must precede dolfinx / petsc4py)
 
 from hyperfem import errors, kinematics, materials, mesh, simulation
 from hyperfem.errors import (

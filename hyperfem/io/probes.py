@@ -60,9 +60,10 @@ class PointProbe:
             owned = cells[cells < size_local]
             if len(owned):
                 owner[i] = owned[0]
-        found = np.where(owner >= 0, mesh.comm.rank, mesh.comm.size)
+        found = np.where(owner >= 0, mesh.comm.rank, mesh.comm.size).astype(np.int32)
         # One rank (the lowest that found it) evaluates each point.
-        self._rank = mesh.comm.allreduce(found, op=MPI.MIN)
+        self._rank = np.empty_like(found)
+        mesh.comm.Allreduce(found, self._rank, op=MPI.MIN)  # elementwise over the points
         missing = np.where(self._rank == mesh.comm.size)[0]
         if len(missing):
             raise ParameterError(f"PointProbe: point {pts[missing[0]].tolist()} is outside the mesh")

@@ -225,10 +225,9 @@ def load_checkpoint(sim, path: str | Path) -> dict:
     """
     meta = read_meta(path, sim.comm)
     where = meta["path"]
-    problem = f"{where} does not match this run"
     mismatch = _mismatch(meta.get("fingerprint", {}), fingerprint(sim))
     if mismatch:
-        raise CheckpointError(f"cannot restart from {problem}: {mismatch}")
+        raise CheckpointError(f"cannot restart from {where}: it does not match this run: {mismatch}")
     read_functions(where, checkpoint_functions(sim), sim.comm)
     t = float(meta["time"])
     if sim.kind == "dynamic":

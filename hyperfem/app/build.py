@@ -1,0 +1,200 @@
+"""Case → objects: the mesh, materials, loads, conditions, problem, solver, stepping and the Simulation.
+
+:func:`build` evaluates the statements of :func:`hyperfem.app.python_equivalent.plan`
+— the ones ``hyperfem run --print-python`` prints — one by one, in a namespace
+with the script's imports, on every rank. So ``hyperfem run`` builds exactly
+the objects of that script (:class:`~hyperfem.HyperelasticProblem` or
+:class:`~hyperfem.problem.MixedHyperelasticProblem`, an
+:class:`~hyperfem.dynamics.IncrementalProblem` for a dynamic run, the
+:class:`~hyperfem.NewtonSolver`, the stepping preset and the
+:class:`~hyperfem.simulation.Simulation` with its outputs): one code path.
+
+Between reading the mesh and building anything on it, :func:`check_mesh`
+checks every physical-group name of the case against the mesh (with a
+did-you-mean and the names that exist) and the orientation of the cells
+(:mod:`hyperfem.app.meshcheck`). A hyperfem error raised while building an
+entry comes back as a :class:`~hyperfem.app.schema.CaseFileError` naming the
+case key (``bc[0]: ...``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mpi4py import MPI
+
+from hyperfem.app.casefile import Case
+from hyperfem.app.meshcheck import domain_orientation
+from hyperfem.app.python_equivalent import Statement, imports, plan
+from hyperfem.app.report import say, warn
+from hyperfem.app.schema import CaseFileError, suggestion
+from hyperfem.errors import HyperfemError, MeshError
+
+__all__ = ["Built", "build", "build_domain", "check_dimensions", "check_groups", "check_mesh"]
+
+
+@dataclass
+class Built:
+    """The objects of a case, by the names of the printed script.
+
+    Attributes:
+        case: The case.
+        namespace: Every variable of the script (``domain``, ``problem``, ``solver``, ``stepping``,
+            ``outputs``, ``simulation``, ``materials``/``material``, ``bcs``, ``loads``, ...).
+    """
+
+    case: Case
+    namespace: dict
+
+    def __getattr__(self, name: str):
+        try:
+            return self.__dict__["namespace"][name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+
+def _groups(case: Case) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+    """``(key, name)`` of every facet group and every cell group the case names."""
+    facets = [(f"{bc.key}.boundary", bc.boundary) for bc in case.bcs]
+    facets += [(f"{ld.key}.boundary", ld.boundary) for ld in case.loads if ld.boundary is not None]
+    if case.fibres is not None and case.fibres.type == "laplace":
+        facets += [("fibres.source", case.fibres.options["source"]), ("fibres.target", case.fibres.options["target"])]
+    cells = [(f"{m.key}.region", m.region) for m in case.materials if m.region is not None]
+    cells += [(f"{ld.key}.region", ld.region) for ld in case.loads if ld.region is not None]
+    return facets, cells
+
+
+def check_groups(case: Case, domain) -> None:
+    """Every boundary and region the case names must be a physical group of the mesh.
+
+    Raises:
+        CaseFileError: ``bc[0].boundary: no boundary 'x' in MESH (did you mean 'y'?); boundaries: ...``.
+    """
+    facets, cells = _groups(case)
+    for kind, entries, groups in (("boundary", facets, domain.facet_groups), ("region", cells, domain.cell_groups)):
+        for key, name in entries:
+            if name not in groups:
+                available = ", ".join(sorted(groups)) or "none"
+                raise CaseFileError(
+                    f"{key}: no {kind} {name!r} in {domain.source}{suggestion(name, groups)}; "
+                    f"{kind} groups of the mesh: {available}",
+                    case.source,
+                )
+
+
+def check_dimensions(case: Case, domain) -> None:
+    """Vectors of the case must have one entry per displacement component of the mesh.
+
+    Raises:
+        CaseFileError: A boundary value, load, affine field or fibre direction of the wrong length.
+    """
+    gdim = domain.gdim
+
+    def fail(key: str, what: str) -> None:
+        raise CaseFileError(f"{key}: {what} (the mesh {domain.source} has {gdim} displacement components)", case.source)
+
+    for bc in case.bcs:
+        if bc.type == "displacement" and bc.components is None and len(bc.value) != gdim:
+            fail(f"{bc.key}.value", f"{len(bc.value)} values; give {gdim}, or components = [...] to prescribe fewer")
+        if bc.components is not None and max(bc.components) >= gdim:
+            fail(f"{bc.key}.components", f"component {max(bc.components)} does not exist")
+        if bc.type == "rotation" and gdim != 3:
+            fail(bc.key, "a rotation needs a 3D mesh")
+    for load in case.loads:
+        if isinstance(load.value, dict):
+            if len(load.value["matrix"]) != gdim:
+                fail(f"{load.key}.value.matrix", f"a {len(load.value['matrix'])}x{len(load.value['matrix'])} matrix")
+        elif load.type != "pressure" and len(load.value) != gdim:
+            fail(f"{load.key}.value", f"{len(load.value)} components")
+    if case.fibres is not None and case.fibres.type == "constant" and len(case.fibres.options["direction"]) != gdim:
+        fail("fibres.direction", f"{len(case.fibres.options['direction'])} components")
+
+
+def check_mesh(case: Case, domain, *, echo: bool = False) -> None:
+    """Group names (:func:`check_groups`), vector lengths (:func:`check_dimensions`) and cell orientation (collective).
+
+    Args:
+        case: The case.
+        domain: Its mesh.
+        echo: Print the mesh line and warnings on rank 0.
+
+    Raises:
+        CaseFileError: A group the case names is not in the mesh, or a vector of the wrong length.
+        MeshError: The mesh has cells without volume.
+    """
+    check_groups(case, domain)
+    check_dimensions(case, domain)
+    counts = domain_orientation(domain)
+    if counts is None:
+        return
+    if counts.degenerate:
+        raise MeshError(
+            f"{domain.source}: {counts.degenerate} of {counts.cells} cells have no volume (degenerate); fix the mesh "
+            "(hyperfem mesh-quality shows the measures)"
+        )
+    if counts.inverted and echo:
+        warn(
+            f"{domain.source}: {counts.inverted} of {counts.cells} cells are inverted (negative orientation); "
+            "harmless here (hyperfem integrates |det J|), but other tools may refuse the file "
+            "(hyperfem convert --reorient fixes it)",
+            domain.comm,
+        )
+
+
+def _evaluate(expression: str, key: str, namespace: dict, case: Case):
+    code = compile(expression, f"<{case.source.name}: {key}>", "eval")
+    try:
+        return eval(code, namespace)  # noqa: S307 - our own plan, built from literals of checked values
+    except CaseFileError:
+        raise
+    except HyperfemError as exc:
+        raise CaseFileError(f"{key}: {exc}", case.source) from exc
+
+
+def _namespace(statements: list[Statement], case: Case, comm: MPI.Comm) -> dict:
+    """The script's globals: ``comm`` and the imports of ``statements``."""
+    namespace: dict = {"comm": comm, "__name__": f"hyperfem-case:{case.name}"}
+    exec("\n".join(imports(statements)), namespace)  # noqa: S102 - fixed import lines of the plan
+    return namespace
+
+
+def _run(statement: Statement, namespace: dict, case: Case):
+    if statement.items is None:
+        return _evaluate(statement.expression, statement.key, namespace, case)
+    return [_evaluate(expr, key, namespace, case) for key, expr in statement.items]
+
+
+def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) -> Built:
+    """Build every object of ``case`` (collective), ending with the ``simulation``.
+
+    Args:
+        case: The checked case.
+        comm: Communicator of the run.
+        echo: Print a line on the run and its mesh (rank 0) before building on the mesh.
+
+    Raises:
+        CaseFileError: A group name the mesh lacks, or a hyperfem error while building an entry (with its key).
+        OutputError: The output folder cannot be written.
+        MeshError: The mesh cannot be read, or has degenerate cells.
+    """
+    statements = plan(case)
+    namespace = _namespace(statements, case, comm)
+    for statement in statements:
+        value = _run(statement, namespace, case)
+        if statement.target is not None:
+            namespace[statement.target] = value
+        if statement.target == "domain":
+            check_mesh(case, value, echo=echo)
+            if echo:
+                cells = value.mesh.topology.index_map(value.tdim).size_global
+                kind = "dynamic" if case.dynamic else "quasi-static"
+                say(f"{case.name} ({case.source}): {kind}, {comm.size} rank(s); mesh {value.source}: {cells} cells",
+                    comm)
+    return Built(case, namespace)
+
+
+def build_domain(case: Case, comm: MPI.Comm = MPI.COMM_WORLD):
+    """Only the mesh of ``case`` (its ``domain`` statement; collective), e.g. to check the case."""
+    statements = plan(case)
+    (statement,) = [s for s in statements if s.target == "domain"]
+    return _run(statement, _namespace(statements, case, comm), case)

@@ -1,0 +1,239 @@
+r"""TOML case files: reading, ``--set`` overrides and validation into a :class:`~hyperfem.app.spec.Case`.
+
+A case file describes one run and maps one to one onto the objects a Python
+script builds (:mod:`hyperfem.app.python_equivalent` writes that script;
+every key below is the keyword of the same name, or the one noted, of the
+class named). Examples: ``cases/*.toml``.
+
+.. code-block:: toml
+
+    name = "bend"                   # names the output files; default: the file's stem
+    description = "..."
+
+    [mesh]                          # hf.read_mesh(file), or a generator:
+    file = "../meshes/beam_h2.msh"  #   relative to the case file
+    # generator = "beam"            #   "beam" (hf.beam_mesh) | "fusiform" (hf.mesh.fusiform_mesh)
+    # size = 2.0                    #   h; order = 1 | 2; [mesh.geometry] = FusiformGeometry fields
+
+    [problem]                       # HyperelasticProblem | MixedHyperelasticProblem
+    formulation = "displacement"    # | "mixed" (three-field u, p, theta)
+    degree = 1                      # default 1 (displacement), 2 (mixed); pressure_degree, quadrature_degree
+
+    [[material]]                    # one, or one per region = "cell group"
+    law = "neo_hookean"             # LAWS; mixed: neo_hookean, mooney_rivlin, muscle
+    E = 1.0e6                       # or mu + lambda, or mu + bulk_modulus (isotropic laws)
+    nu = 0.3                        # in (-1, 0.5)
+    density = 1000.0                # > 0; needed by a dynamic run
+    # volumetric = "log"            # mixed only: "log" | "quadratic" | "simo_taylor"
+    # mooney_rivlin: c1, c2, K; muscle: preset = "muscle" | "tendon", c1, c2, K, T_max, lambda_ofl,
+    #   P1, P2, l_star, activation = number | profile
+
+    # [fibres]                      # law "muscle": laplace_fibres | constant_fibres | fibres_from_file
+    # type = "laplace"              #   source, target | direction | file, name, location
+    # source = "origin"             #   representation = "DG0" | "P1" | "quadrature"
+    # target = "insertion"
+
+    [[bc]]
+    type = "clamp"                  # hf.Clamp(boundary)
+    boundary = "clamped"
+    # type = "displacement": value = [...], components = ["x", ...], profile   (PrescribedDisplacement)
+    # type = "rotation": axis, center, angle (radians), profile                 (dyn.rotating_surface)
+
+    [[load]]
+    type = "dead_traction"          # | "follower_traction" | "pressure" (FollowerPressure) | "body_force"
+    boundary = "free_end"           # body_force: region (optional)
+    value = [0.0, -5.0e3, 0.0]      # or {matrix = [[...]], offset = [...]}: A x + b (AffineField); pressure: a number
+    profile = "linear"              # "linear" | "steady" | number | {type = "ramp" | "table", ...}
+
+    [stepping]                      # hf.LoadStepping: increment (initial_increment), min_increment,
+    type = "quasi-static"           #   max_increment, growth, easy_iterations, max_steps; end; solve_initial
+    increment = 1.0
+    # type = "dynamic": scheme = "newmark" (beta, gamma) | "backward_euler" | "generalized_alpha" (rho_inf)
+    #   | "quasi_static"; dt, t_end, dt_min, dt_max, adaptive, tolerance, grow_after, must_hit, max_steps
+    #   (dyn.TimeStepping); lumped_mass; damping = {alpha, beta} (dyn.RayleighDamping); initial_acceleration
+
+    [solver]                        # hf.NewtonSolver
+    rtol = 1e-8                     # snes_rtol; atol, stol, max_iterations (snes_max_it), line_search
+    petsc_options = { ksp_type = "preonly" }   # given to PETSc as they are
+    # min_jacobian = number | "auto" | false; step_filter = "auto" | "exact" | "bisection"; predictor
+
+    [output]                        # hyperfem.simulation outputs, in the folder below
+    directory = "output/bend"       # relative to the working folder; default output/<name>
+    probes = [[4.5, 1.5, 1.5]]      # Probe
+    reactions = "all"               # Reactions: force and moment of every Dirichlet boundary; or a list; false
+    fields = ["displacement"]       # FieldOutput: + cauchy_stress, von_mises, J, fibre_stretch, activation
+    format = "vtx"                  # | "xdmf"; times = [...] or every = dt: frames only then
+    checkpoint_every = 10           # Checkpoint (and at the end, and after a failed step); checkpoint = false
+    # csv, summary, convergence, progress = true | false (CSVLog, JSONSummary, ConvergenceLog, Progress)
+
+Validation happens before anything is computed (:func:`load_case`): TOML
+syntax errors with line and column, unknown keys with a did-you-mean, wrong
+types, missing keys, out-of-range parameters (negative density, Poisson's
+ratio :math:`\nu \ge 1/2`, ...), conflicting Dirichlet conditions on one
+boundary. Every message is a :class:`~hyperfem.app.schema.CaseFileError`
+that names the file and the key path (``bend.toml: material[0].nu: ...``).
+Names of physical groups and vector lengths are checked against the mesh
+once it is read (:func:`hyperfem.app.build.check_mesh`).
+
+Load and boundary-condition *profiles* :math:`f(t)` scale the value with the
+load factor (quasi-static) or the time (dynamic); the default ``"linear"`` is
+the library's :math:`f(t) = t`. ``"steady"`` is :math:`f = 1`; a number
+``c`` is :math:`f = c`; ``{type = "ramp", t1, final, initial, t0}`` is
+:class:`~hyperfem.dynamics.Ramp`; ``{type = "table", times, values}`` is
+:class:`~hyperfem.app.functions.Table`. The ends of ramps, the table times and
+the field output times are must-hit times of a dynamic run.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from hyperfem.app import sections
+from hyperfem.app.overrides import apply_overrides
+from hyperfem.app.schema import CaseFileError, check_table
+from hyperfem.app.spec import (
+    LAWS,
+    MIXED_LAWS,
+    BCSpec,
+    Case,
+    FibreSpec,
+    LoadSpec,
+    MaterialSpec,
+    MeshSpec,
+    OutputSpec,
+    ProblemSpec,
+    Profile,
+    SolverSpec,
+    SteppingSpec,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = [
+    "LAWS",
+    "MIXED_LAWS",
+    "BCSpec",
+    "Case",
+    "CaseFileError",
+    "FibreSpec",
+    "LoadSpec",
+    "MaterialSpec",
+    "MeshSpec",
+    "OutputSpec",
+    "ProblemSpec",
+    "Profile",
+    "SolverSpec",
+    "SteppingSpec",
+    "apply_overrides",
+    "check_case",
+    "load_case",
+    "parse_toml",
+]
+
+
+# -- reading --------------------------------------------------------------------------------
+_AT = re.compile(r"^(?P<msg>.*?)\s*\(at line (?P<line>\d+), column (?P<col>\d+)\)$")
+
+
+def parse_toml(text: str, source: str | Path = "<case>") -> dict:
+    """Parse TOML text; a syntax error becomes ``FILE:LINE:COLUMN: TOML syntax error: ...``.
+
+    Raises:
+        CaseFileError: On a syntax error.
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        text = str(exc)
+        m = _AT.match(text)
+        if m:
+            where = f"{source}:{m['line']}:{m['col']}"
+            raise CaseFileError(f"{where}: TOML syntax error: {m['msg']}") from None
+        raise CaseFileError(f"{source}: TOML syntax error: {text}") from None
+
+
+def load_case(
+    path: str | Path, overrides: Sequence[str] = (), *, output: str | Path | None = None
+) -> Case:
+    """Read, override and check a case file (on every rank: the checks are deterministic).
+
+    Args:
+        path: The ``.toml`` file.
+        overrides: ``key=value`` strings (:func:`apply_overrides`).
+        output: Output folder replacing ``[output] directory``.
+
+    Raises:
+        CaseFileError: The file is missing, unreadable or invalid.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise CaseFileError(f"case file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseFileError(f"{path}: cannot read the case file: {getattr(exc, 'strerror', None) or exc}") from None
+    data = parse_toml(text, path)
+    data = apply_overrides(data, overrides, path)
+    return check_case(data, path, output=output)
+
+
+def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Path | None = None) -> Case:
+    """Check the parsed TOML of a case and return the :class:`Case`.
+
+    Args:
+        data: Parsed TOML.
+        source: The case file (messages, relative mesh paths).
+        output: Output folder replacing ``[output] directory``.
+
+    Raises:
+        CaseFileError: The first problem found, with the file name and the key path.
+    """
+    source = Path(source)
+    try:
+        top = check_table(data, sections.TOP, "", what="the case")
+        name = top.get("name", re.sub(r"[^A-Za-z0-9_.+-]", "_", source.stem) or "case")
+        if not sections.NAME.fullmatch(name):
+            raise CaseFileError(f"name: use letters, digits and _.+- only (it names the output files), got {name!r}")
+        problem = sections.check_problem(top.get("problem", {}))
+        fibres = sections.check_fibres(top["fibres"]) if "fibres" in top else None
+        materials = sections.check_materials(top["material"], problem.formulation == "mixed", fibres is not None)
+        if fibres is not None and not any(m.law == "muscle" for m in materials):
+            raise CaseFileError("fibres: no material uses fibres (only law = \"muscle\" does)")
+        bcs = sections.check_bcs(top.get("bc", []))
+        loads = sections.check_loads(top.get("load", []))
+        stepping = sections.check_stepping(top.get("stepping", {}))
+        if stepping.dynamic and stepping.scheme != "quasi_static":
+            for m in materials:
+                if m.density is None:
+                    raise CaseFileError(
+                        f"{m.key}: missing required key 'density' (a dynamic run needs the mass density)"
+                    )
+        degree = problem.degree or (2 if problem.formulation == "mixed" else 1)
+        if stepping.lumped_mass and degree != 1:
+            raise CaseFileError(
+                "stepping.lumped_mass: the lumped mass needs degree-1 displacements (problem.degree = 1)"
+            )
+        return Case(
+            source=source,
+            name=name,
+            description=top.get("description", ""),
+            mesh=sections.check_mesh_table(top["mesh"], source),
+            problem=problem,
+            materials=materials,
+            fibres=fibres,
+            bcs=bcs,
+            loads=loads,
+            stepping=stepping,
+            solver=sections.check_solver(top.get("solver", {})),
+            output=sections.check_output(top.get("output", {}), name, output, stepping, bcs, fibres, materials),
+        )
+    except CaseFileError as exc:
+        if exc.source is not None:
+            raise
+        raise CaseFileError(exc.message, source) from None

@@ -1,0 +1,417 @@
+"""The ``hyperfem`` command.
+
+.. code-block:: text
+
+    hyperfem run CASE.toml [--output DIR] [--set KEY=VALUE ...] [--print-python]
+    hyperfem check CASE.toml [--set KEY=VALUE ...]
+    hyperfem schema
+    hyperfem demo [NAME [ARGS ...]]
+    hyperfem mesh beam [--size H] [--order N] [-o OUT.msh]
+    hyperfem mesh fusiform [--size H] [--order N] [--belly-length L ...] [-o OUT.msh]
+    hyperfem mesh-quality MESH.msh [--png OUT.png] [--threshold Q]
+    hyperfem plot OUTPUT_FOLDER
+    hyperfem convert IN OUT.msh [--reorient] [--tags NAME]
+    hyperfem --version
+
+Every command runs under ``mpiexec -n N`` (mesh generation and conversion on
+rank 0; the others wait for its outcome). Every hyperfem error — a bad case
+file, a missing mesh, a failed step — is one line ``hyperfem: error: ...`` on
+rank 0 and exit status 1 on every rank (:func:`hyperfem.cli.run`); bad
+arguments are argparse's one line and status 2. Warnings are one line
+``hyperfem: warning: ...``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import runpy
+import sys
+import warnings
+from pathlib import Path
+
+from mpi4py import MPI
+
+from hyperfem.cli import ArgumentParser, positive_float, positive_int, run, unit_interval
+from hyperfem.errors import HyperfemError, ParameterError
+
+__all__ = ["DEMOS", "main", "make_parser", "dispatch"]
+
+DEMOS = Path(__file__).resolve().parent.parent.parent / "demos"
+"""The demo scripts of the source tree (``hyperfem demo`` runs them)."""
+
+EPILOG = """\
+examples:
+  hyperfem run cases/bend.toml
+  mpiexec -n 2 hyperfem run cases/twist.toml --set problem.degree=1 --output out/twist
+  hyperfem run cases/bend.toml --print-python > bend.py
+  hyperfem demo bend --degree 1
+  hyperfem mesh beam --size 2 -o beam_h2.msh
+  hyperfem mesh-quality beam_h2.msh --png quality.png
+  hyperfem convert part.inp part.msh
+"""
+
+
+def _version() -> str:
+    import dolfinx
+
+    from hyperfem import __version__
+
+    mpi = MPI.Get_library_version().splitlines()[0].strip()
+    return f"hyperfem {__version__} (DOLFINx {dolfinx.__version__}, {mpi})"
+
+
+def _demos() -> list[str]:
+    if not DEMOS.is_dir():
+        return []
+    return sorted(p.stem for p in DEMOS.glob("*.py") if not p.stem.startswith("_"))
+
+
+# -- parser --------------------------------------------------------------------------------------
+def make_parser() -> ArgumentParser:
+    """The argument parser of every subcommand (help and errors on rank 0)."""
+    p = ArgumentParser(
+        prog="hyperfem",
+        description="Large-deformation hyperelastic solids with FEniCSx: run case files, demos and mesh tools.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="store_true", help="print the hyperfem, DOLFINx and MPI versions")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser(
+        "run",
+        help="run a TOML case file",
+        description="Check a TOML case file, build its problem and run it; the summary, CSV, convergence log, "
+        "ParaView fields and checkpoints go to the output folder. Keys of a case file: hyperfem schema; "
+        "examples: cases/*.toml.",
+        epilog="Inverted (negatively oriented) cells in the mesh draw a warning (they do not change the result); "
+        "cells without volume are an error.",
+    )
+    r.add_argument("case", type=Path, help="the .toml case file")
+    r.add_argument("--output", "-o", type=Path, default=None, help="output folder (replaces [output] directory)")
+    r.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a case entry, e.g. --set stepping.dt=0.01 --set material[0].E=2e6 (repeatable)",
+    )
+    r.add_argument(
+        "--restart",
+        nargs="?",
+        const="latest",
+        default=None,
+        metavar="CHECKPOINT",
+        help="continue from a checkpoint of this case (default: the newest in OUTPUT/NAME.checkpoint)",
+    )
+    r.add_argument("--print-python", action="store_true", help="print the equivalent Python script and exit")
+
+    c = sub.add_parser(
+        "check",
+        help="check a case file and its mesh without solving",
+        description="Check the case file (schema, values, conflicts), read its mesh and check every group name.",
+    )
+    c.add_argument("case", type=Path, help="the .toml case file")
+    c.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help="as for run")
+
+    sub.add_parser(
+        "schema",
+        help="print the keys of a case file",
+        description="Print every section and key of a TOML case file, with the class each maps onto.",
+    )
+
+    names = _demos()
+    d = sub.add_parser(
+        "demo",
+        help="run one of the demos",
+        description="Run a demo script of demos/ with its own arguments (hyperfem demo NAME --help shows them). "
+        f"Demos: {', '.join(names) or 'none found'}.",
+    )
+    d.add_argument("name", nargs="?", default=None, help="demo name (without one: list them)")
+    d.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the demo")
+
+    m = sub.add_parser("mesh", help="generate a gmsh mesh", description="Generate a mesh with gmsh and write it.")
+    msub = m.add_subparsers(dest="generator", metavar="GENERATOR")
+    beam = msub.add_parser(
+        "beam",
+        help="the 10 x 4 x 4 m cantilever beam of seed 003",
+        description="The cantilever beam, groups beam, clamped, free_end, surface.",
+    )
+    beam.add_argument("--size", "--h", dest="size", type=positive_float, default=1.0, help="element size h (m)")
+    beam.add_argument("--order", type=int, choices=(1, 2), default=1, help="geometric order")
+    beam.add_argument("-o", "--output", type=Path, default=None, help="output .msh (default beam_h<size>.msh)")
+    fus = msub.add_parser(
+        "fusiform",
+        help="the fusiform muscle with tendons of seed 000",
+        description="The spindle muscle: regions muscle, tendon_proximal, tendon_distal; boundaries origin, "
+        "insertion, lateral.",
+    )
+    fus.add_argument("--size", "--h", dest="size", type=positive_float, default=0.004, help="element size h (m)")
+    fus.add_argument("--order", type=int, choices=(1, 2), default=1, help="geometric order")
+    fus.add_argument("--belly-length", type=positive_float, default=None, help="belly length L (m)")
+    fus.add_argument("--belly-radius", type=positive_float, default=None, help="largest radius R (m)")
+    fus.add_argument("--tendon-radius", type=positive_float, default=None, help="tendon radius (m), below R")
+    fus.add_argument("--tendon-length", type=positive_float, default=None, help="length of each tendon (m)")
+    fus.add_argument("--sections", type=positive_int, default=None, help="lofted cross-sections (odd, >= 3)")
+    fus.add_argument("-o", "--output", type=Path, default=None, help="output .msh (default fusiform_h<size>.msh)")
+
+    pl = sub.add_parser(
+        "plot",
+        help="plots of a run's output folder as PNG",
+        description="Load-displacement, Newton convergence (semilog residuals per step) and, for a dynamic run, "
+        "the time series of the test point, energies and volume, from the files a run left in its output folder.",
+    )
+    pl.add_argument("folder", type=Path, help="the output folder of a run")
+
+    q = sub.add_parser(
+        "mesh-quality",
+        help="shape-quality measures of a mesh (seed 003, section 5.6)",
+        description="Radius ratio, inradius/edge, minimum dihedral sine and volume-length measure of every cell "
+        "(1 = regular): min, percentiles, mean and max; optionally histograms as PNG.",
+    )
+    q.add_argument("mesh", type=Path, help="gmsh .msh file")
+    q.add_argument("--png", type=Path, default=None, help="write histograms of the measures to this PNG")
+    q.add_argument("--threshold", type=unit_interval, default=None, help="warn below this quality (default 0.1)")
+
+    v = sub.add_parser(
+        "convert",
+        help="import a tetrahedral mesh (meshio) as a gmsh file",
+        description="Read a tetrahedral mesh (.vtu, .inp, .mesh, .msh, .xdmf, ... via meshio) with its cell and "
+        "facet tags (or cell/point sets) and write the gmsh 2.2 .msh that hyperfem reads, one physical group per "
+        "tag. Refuses surface meshes, mixed or non-tetrahedral cells and degenerate cells; inverted cells unless "
+        "--reorient.",
+    )
+    v.add_argument("input", type=Path, help="input mesh")
+    v.add_argument("output", type=Path, help="output .msh")
+    v.add_argument("--reorient", action="store_true", help="fix inverted tetrahedra by swapping two vertices")
+    v.add_argument("--tags", default=None, help="integer cell-data array with the group tags (default: detect)")
+    return p
+
+
+# -- commands ---------------------------------------------------------------------------------------
+def _say(text: str) -> None:
+    if MPI.COMM_WORLD.rank == 0:
+        print(text, flush=True)
+
+
+def _on_rank0(action):
+    """Run ``action()`` on rank 0; every rank returns its result or raises the same hyperfem error."""
+    comm = MPI.COMM_WORLD
+    result, failure = None, None
+    if comm.rank == 0:
+        try:
+            result = action()
+        except HyperfemError as exc:
+            failure = (type(exc).__name__, str(exc))
+        except Exception:
+            comm.bcast(("unexpected", ""), root=0)
+            raise
+    failure = comm.bcast(failure, root=0)
+    if failure is not None:
+        kind, message = failure
+        if kind == "unexpected":
+            raise RuntimeError("rank 0 failed (see its traceback)")
+        from hyperfem import errors
+
+        raise getattr(errors, kind, HyperfemError)(message)
+    return comm.bcast(result, root=0)
+
+
+def _run(args) -> dict | None:
+    from hyperfem.app.build import build
+    from hyperfem.app.casefile import load_case
+    from hyperfem.app.python_equivalent import checkpoint_folder, script
+    from hyperfem.simulation import format_summary
+
+    case = load_case(args.case, args.overrides, output=args.output)
+    restart = None
+    if args.restart is not None:
+        restart = checkpoint_folder(case) if args.restart == "latest" else Path(args.restart)
+    if args.print_python:
+        _say(script(case, restart))
+        return None
+    built = build(case, MPI.COMM_WORLD, echo=True)
+    summary = built.simulation.run(restart=restart)
+    lines = [format_summary(summary)]
+    for name, reaction in summary.get("reactions", {}).items():
+        lines.append(f"  reaction on {name}: force {_vector(reaction['force'])}, moment {_vector(reaction['moment'])}")
+    _say("\n".join(lines))
+    return summary
+
+
+def _vector(values) -> str:
+    return "(" + ", ".join(f"{v:.6g}" for v in values) + ")"
+
+
+def _check(args) -> None:
+    from hyperfem.app.build import build_domain, check_mesh
+    from hyperfem.app.casefile import load_case
+    from hyperfem.app.python_equivalent import plan
+
+    case = load_case(args.case, args.overrides)
+    statements = plan(case)  # the script can be written
+    domain = build_domain(case, MPI.COMM_WORLD)
+    check_mesh(case, domain, echo=True)
+    _say(
+        f"{args.case}: ok ({case.name}: {len(case.materials)} material(s), {len(case.bcs)} condition(s), "
+        f"{len(case.loads)} load(s), {'dynamic' if case.dynamic else 'quasi-static'}; {len(statements)} statements)"
+    )
+
+
+def _schema(args) -> None:
+    from hyperfem.app import casefile
+
+    doc = casefile.__doc__
+    start = doc.index(".. code-block:: toml") + len(".. code-block:: toml")
+    block = doc[start : doc.index("\nValidation happens")].strip("\n")
+    _say("\n".join(line[4:] for line in block.splitlines()))
+
+
+def _demo(args) -> None:
+    names = _demos()
+    if args.name is None:
+        _say(f"demos: {', '.join(names)}\nrun one with: hyperfem demo NAME [ARGS ...] (NAME --help: its options)")
+        return
+    name = args.name.replace("-", "_")
+    if name not in names:
+        from hyperfem.app.schema import suggestion
+
+        where = f"in {DEMOS}" if names else f"({DEMOS} not found: the demos ship with the source tree)"
+        raise ParameterError(
+            f"demo: unknown demo {args.name!r}{suggestion(name, names)}; demos {where}: {', '.join(names)}"
+        )
+    path = DEMOS / f"{name}.py"
+    saved = sys.argv
+    sys.argv = [str(path), *args.args]
+    try:
+        runpy.run_path(str(path), run_name="__main__")
+    finally:
+        sys.argv = saved
+
+
+def _mesh(args) -> None:
+    from hyperfem.app.meshconvert import describe_msh
+
+    if args.generator is None:
+        raise ParameterError("mesh: name a generator: hyperfem mesh beam ... or hyperfem mesh fusiform ...")
+    out = args.output or Path(f"{args.generator}_h{args.size:g}.msh")
+
+    def write() -> str:
+        if args.generator == "beam":
+            from hyperfem.mesh.beam import write_beam_mesh
+
+            write_beam_mesh(out, h=args.size, order=args.order)
+        else:
+            from hyperfem.mesh.fusiform import FusiformGeometry, write_fusiform_mesh
+
+            given = {
+                k: getattr(args, k)
+                for k in ("belly_length", "belly_radius", "tendon_radius", "tendon_length", "sections")
+                if getattr(args, k) is not None
+            }
+            write_fusiform_mesh(out, h=args.size, geometry=FusiformGeometry(**given), order=args.order)
+        return "wrote " + describe_msh(out)
+
+    _say(_on_rank0(write))
+
+
+def _plot(args) -> None:
+    from hyperfem.errors import OutputError
+    from hyperfem.simulation.plots import plot_run
+
+    def plot() -> list[str]:
+        if not args.folder.is_dir():
+            raise OutputError(f"plot: {args.folder} is not a folder (give the output folder of a run)")
+        return [str(p) for p in plot_run(args.folder) if p is not None]
+
+    for path in _on_rank0(plot):
+        _say(f"wrote {path}")
+
+
+def _quality(args) -> None:
+    from hyperfem.app.meshcheck import domain_orientation
+    from hyperfem.app.report import quality_table, warn
+    from hyperfem.mesh.io import read_mesh
+    from hyperfem.mesh.quality import POOR_QUALITY, mesh_quality
+
+    domain = read_mesh(args.mesh, MPI.COMM_WORLD)
+    quality = mesh_quality(domain)
+    regions = ", ".join(sorted(domain.cell_groups)) or "none"
+    boundaries = ", ".join(sorted(domain.facet_groups)) or "none"
+    _say(f"{args.mesh}: {quality.num_cells} {quality.cell_type} cells; regions: {regions}; boundaries: {boundaries}")
+    _say(quality_table(quality))
+    counts = domain_orientation(domain)
+    if counts is not None:
+        _say(f"orientation: {counts.inverted} inverted, {counts.degenerate} degenerate of {counts.cells} cells")
+        if counts.inverted:
+            warn(
+                f"{args.mesh}: {counts.inverted} inverted cells (harmless to hyperfem; "
+                "hyperfem convert --reorient fixes them)"
+            )
+    threshold = POOR_QUALITY if args.threshold is None else args.threshold
+    poor = quality.poor_measures(threshold) if threshold > 0 else []
+    if poor:
+        warn(f"{args.mesh}: cells below quality {threshold:g} in: {', '.join(poor)}")
+    if args.png is not None:
+        from hyperfem.io.results import ensure_output_dir
+
+        ensure_output_dir(args.png.parent, MPI.COMM_WORLD)
+        quality.histogram_png(args.png)
+        _say(f"wrote {args.png}")
+
+
+def _convert(args) -> None:
+    from hyperfem.app.meshconvert import convert
+    from hyperfem.app.report import warn
+
+    def work():
+        report = convert(args.input, args.output, reorient=args.reorient, tags=args.tags)
+        return report.summary(), report.notes, report.warnings
+
+    line, notes, cautions = _on_rank0(work)
+    for note in notes:
+        _say(f"note: {note}")
+    for text in cautions:
+        warn(text)
+    _say(line)
+
+
+COMMANDS = {
+    "run": _run,
+    "check": _check,
+    "schema": _schema,
+    "demo": _demo,
+    "mesh": _mesh,
+    "mesh-quality": _quality,
+    "plot": _plot,
+    "convert": _convert,
+}
+
+
+def dispatch(argv: list[str] | None = None):
+    """Parse ``argv`` and run the command (errors propagate; :func:`main` turns them into one line)."""
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    if args.version:
+        _say(_version())
+        return None
+    if args.command is None:
+        parser.print_help()
+        return None
+    return COMMANDS[args.command](args)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"hyperfem: warning: {message}", file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``hyperfem`` console script."""
+    warnings.showwarning = _one_line_warning
+    run(lambda: dispatch(argv))
+
+
+if __name__ == "__main__":
+    main()

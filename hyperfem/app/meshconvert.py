@@ -1,0 +1,351 @@
+"""``hyperfem convert``: tetrahedral meshes of other formats (via meshio) to the gmsh file hyperfem reads.
+
+Any format meshio reads (``.vtu``, ``.inp``, ``.mesh``, ``.msh``, ``.xdmf``, ...)
+goes in; a gmsh 2.2 ASCII ``.msh`` comes out, with one physical group per
+region (tetrahedra, dimension 3) and per boundary (triangles, dimension 2),
+which :func:`hyperfem.read_mesh` reads back (checked before returning).
+
+Where the groups come from, in this order:
+
+1. an integer cell-data array — ``--tags NAME``, else ``gmsh:physical``,
+   ``medit:ref`` or ``CellEntityIds`` — on the tetrahedra (regions) and the
+   triangles (boundaries); names from the file's field data (gmsh), else
+   ``region_<tag>`` / ``boundary_<tag>``;
+2. else the file's cell sets (Abaqus ``*ELSET``; sets of tetrahedra become
+   regions, sets of triangles boundaries) and point sets (``*NSET``: the
+   exterior faces whose three corners are all in the set become a boundary);
+3. else the whole volume is region ``domain`` and its exterior faces boundary ``boundary``.
+
+Tetrahedra in no region go to region ``unassigned`` (with a warning). Tags are
+renumbered 1, 2, ... per dimension (gmsh physical tags must be positive).
+Refused with a specific message: a file without tetrahedra (a surface mesh),
+mixed volume cells (tetrahedra with hexahedra, wedges, pyramids), other
+volume cells, linear and quadratic cells together, overlapping cell sets,
+degenerate tetrahedra, and inverted (negatively oriented) tetrahedra unless
+``reorient=True`` (:mod:`hyperfem.app.meshcheck`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hyperfem.app.meshcheck import orientation
+from hyperfem.errors import MeshError, MeshFileNotFoundError
+
+__all__ = ["TAG_ARRAYS", "Conversion", "convert", "describe_msh"]
+
+TAG_ARRAYS = ("gmsh:physical", "medit:ref", "CellEntityIds")
+"""Cell-data arrays read as group tags when ``--tags`` is not given."""
+
+VOLUME = {"tetra": 4, "tetra10": 10}
+FACET = {"tetra": "triangle", "tetra10": "triangle6"}
+IGNORED = ("vertex", "line", "line3")
+OTHER_VOLUME = ("hexahedron", "hexahedron20", "hexahedron27", "wedge", "wedge15", "pyramid", "pyramid13")
+# tetra10 in meshio (VTK) order: vertices 0-3, then edges 01, 12, 02, 03, 13, 23; swapping 0 and 1 swaps 12/02, 03/13.
+_SWAP = {4: [1, 0, 2, 3], 10: [1, 0, 2, 3, 4, 6, 5, 8, 7, 9]}
+
+
+@dataclass
+class Conversion:
+    """What :func:`convert` wrote.
+
+    Attributes:
+        path: The ``.msh`` file.
+        cell_type: ``"tetra"`` or ``"tetra10"``.
+        cells: Number of tetrahedra.
+        nodes: Number of nodes.
+        regions: Region name → number of cells.
+        boundaries: Boundary name → number of facets.
+        reoriented: Inverted tetrahedra whose vertex order was fixed.
+        notes: Where the groups came from.
+        warnings: Ignored cells, tetrahedra in no region, reoriented cells.
+    """
+
+    path: Path
+    cell_type: str
+    cells: int
+    nodes: int
+    regions: dict[str, int] = field(default_factory=dict)
+    boundaries: dict[str, int] = field(default_factory=dict)
+    reoriented: int = 0
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        """One line: counts and groups."""
+        regions = ", ".join(f"{k} ({v})" for k, v in self.regions.items())
+        boundaries = ", ".join(f"{k} ({v})" for k, v in self.boundaries.items()) or "none"
+        return (
+            f"wrote {self.path}: {self.cells} {self.cell_type} cells, {self.nodes} nodes; "
+            f"regions: {regions}; boundaries: {boundaries}"
+        )
+
+
+def _read(path: Path):
+    import meshio
+
+    try:
+        return meshio.read(path)
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - meshio raises many types, and may call sys.exit
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0] if str(exc) else type(exc).__name__
+        raise MeshError(f"{path}: meshio cannot read it: {reason}") from None
+
+
+def _blocks(mesh, path: Path) -> tuple[str, list[int], list[int], list[str]]:
+    """The tetrahedron type, indices of volume and facet blocks, and notes on ignored cells."""
+    types = [block.type for block in mesh.cells]
+    counts: dict[str, int] = {}
+    for block in mesh.cells:
+        counts[block.type] = counts.get(block.type, 0) + len(block.data)
+    tets = [t for t in VOLUME if t in counts]
+    others = [t for t in counts if t in OTHER_VOLUME or (t not in VOLUME and t not in IGNORED and _dim(t) == 3)]
+    listing = ", ".join(f"{counts[t]} {t}" for t in counts)
+    if not tets:
+        if others:
+            raise MeshError(
+                f"{path}: unsupported cell type {others[0]} ({listing}); hyperfem solves on tetrahedra: "
+                "remesh with tetrahedra (e.g. gmsh -3)"
+            )
+        raise MeshError(f"{path}: no tetrahedra ({listing or 'no cells'}); convert imports volume meshes of tetrahedra")
+    if others:
+        raise MeshError(
+            f"{path}: mixed cell types ({listing}); hyperfem needs a purely tetrahedral mesh: "
+            "split the other cells into tetrahedra or remesh with tetrahedra"
+        )
+    if len(tets) > 1:
+        raise MeshError(f"{path}: linear and quadratic tetrahedra together ({listing}); use one order")
+    tet = tets[0]
+    facet = FACET[tet]
+    cautions = []
+    wrong_facets = [t for t in counts if _dim(t) == 2 and t != facet]
+    if wrong_facets:
+        ignored = ", ".join(f"{counts[t]} {t}" for t in wrong_facets)
+        cautions.append(f"ignored {ignored} cells (not faces of {tet} cells)")
+    volume = [i for i, t in enumerate(types) if t == tet]
+    facets = [i for i, t in enumerate(types) if t == facet]
+    return tet, volume, facets, cautions
+
+
+def _dim(cell_type: str) -> int:
+    if cell_type.startswith(("vertex",)):
+        return 0
+    if cell_type.startswith("line"):
+        return 1
+    if cell_type.startswith(("triangle", "quad", "polygon")):
+        return 2
+    return 3
+
+
+def _tag_array(mesh, tags: str | None, path: Path) -> str | None:
+    if tags is not None:
+        if tags not in mesh.cell_data:
+            available = ", ".join(mesh.cell_data) or "none"
+            raise MeshError(f"{path}: no cell-data array {tags!r} (available: {available})")
+        return tags
+    return next((name for name in TAG_ARRAYS if name in mesh.cell_data), None)
+
+
+def _names_from_field_data(mesh) -> dict[tuple[int, int], str]:
+    """(dim, tag) → name from gmsh field data."""
+    out = {}
+    for name, value in mesh.field_data.items():
+        value = np.asarray(value).reshape(-1)
+        if value.size >= 2:
+            out[(int(value[1]), int(value[0]))] = name
+    return out
+
+
+def _exterior_facets(tets: np.ndarray) -> np.ndarray:
+    """Faces (vertex triples) that belong to one tetrahedron only."""
+    faces = np.concatenate([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]], tets[:, [1, 2, 3]]])
+    keys = np.sort(faces, axis=1)
+    _, index, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
+    return faces[index[counts == 1]]
+
+
+def _groups_from_array(mesh, name, volume, facets, tet, path):
+    field_names = _names_from_field_data(mesh) if name == "gmsh:physical" else {}
+    data = mesh.cell_data[name]
+    for i in (*volume, *facets):
+        if not np.issubdtype(np.asarray(data[i]).dtype, np.integer):
+            raise MeshError(f"{path}: cell-data array {name!r} is not integer (got {np.asarray(data[i]).dtype})")
+    cell_tags = np.concatenate([np.asarray(data[i]).reshape(-1) for i in volume])
+    facet_cells = [mesh.cells[i].data for i in facets]
+    facet_tags = np.concatenate([np.asarray(data[i]).reshape(-1) for i in facets]) if facets else np.zeros(0, int)
+    facet_data = np.concatenate(facet_cells) if facet_cells else np.zeros((0, 3 if tet == "tetra" else 6), int)
+    unassigned = cell_tags <= 0 if name == "gmsh:physical" else np.zeros(len(cell_tags), dtype=bool)
+    regions = {}
+    for value in np.unique(cell_tags[~unassigned]):
+        regions[field_names.get((3, int(value)), f"region_{int(value)}")] = cell_tags == value
+    keep = facet_tags > 0 if name == "gmsh:physical" else np.ones(len(facet_tags), dtype=bool)
+    boundaries = {}
+    for value in np.unique(facet_tags[keep]):
+        boundaries[field_names.get((2, int(value)), f"boundary_{int(value)}")] = facet_data[facet_tags == value]
+    return regions, unassigned, boundaries
+
+
+def _groups_from_sets(mesh, volume, facets, cells, path):
+    offsets = np.cumsum([0] + [len(mesh.cells[i].data) for i in volume])
+    regions: dict[str, np.ndarray] = {}
+    boundaries: dict[str, np.ndarray] = {}
+    for name, per_block in mesh.cell_sets.items():
+        if name.startswith("gmsh:"):
+            continue
+        mask = np.zeros(len(cells), dtype=bool)
+        chosen = []
+        for k, i in enumerate(volume):
+            if i < len(per_block) and per_block[i] is not None and len(per_block[i]):
+                mask[offsets[k] + np.asarray(per_block[i], dtype=int)] = True
+        for i in facets:
+            if i < len(per_block) and per_block[i] is not None and len(per_block[i]):
+                chosen.append(mesh.cells[i].data[np.asarray(per_block[i], dtype=int)])
+        if mask.any():
+            regions[name] = mask
+        if chosen:
+            boundaries[name] = np.concatenate(chosen)
+    names = list(regions)
+    for a in range(len(names)):
+        for b in range(a):
+            if np.any(regions[names[a]] & regions[names[b]]):
+                raise MeshError(
+                    f"{path}: cell sets {names[b]!r} and {names[a]!r} overlap; each tetrahedron needs one region "
+                    "(remove one of the sets, or pass --tags with a cell-data array)"
+                )
+    if mesh.point_sets:
+        exterior = _exterior_facets(cells[:, :4])
+        for name, points in mesh.point_sets.items():
+            inside = np.zeros(len(mesh.points), dtype=bool)
+            inside[np.asarray(points, dtype=int)] = True
+            chosen = exterior[inside[exterior].all(axis=1)]
+            if len(chosen) and name not in boundaries:
+                boundaries[name] = chosen
+    covered = np.zeros(len(cells), dtype=bool)
+    for mask in regions.values():
+        covered |= mask
+    return regions, ~covered, boundaries
+
+
+def convert(source: str | Path, target: str | Path, *, reorient: bool = False, tags: str | None = None) -> Conversion:
+    """Convert a tetrahedral mesh with its groups to a gmsh 2.2 ``.msh`` file (serial; call on one rank).
+
+    Args:
+        source: Any mesh file meshio reads.
+        target: The ``.msh`` file to write.
+        reorient: Fix inverted tetrahedra (swap two vertices) instead of refusing them.
+        tags: Name of the integer cell-data array holding the group tags.
+
+    Raises:
+        MeshFileNotFoundError: ``source`` does not exist.
+        MeshError: Unreadable file, no/mixed/unsupported cells, overlapping sets, degenerate
+            or (without ``reorient``) inverted tetrahedra, or a result hyperfem cannot read back.
+    """
+    import meshio
+
+    source, target = Path(source), Path(target)
+    if not source.is_file():
+        raise MeshFileNotFoundError(f"mesh file not found: {source}")
+    if target.suffix != ".msh":
+        raise MeshError(f"{target}: convert writes gmsh files: the output must end in .msh")
+    mesh = _read(source)
+    tet, volume, facets, cautions = _blocks(mesh, source)
+    notes: list[str] = []
+    cells = np.concatenate([np.asarray(mesh.cells[i].data, dtype=np.int64) for i in volume])
+    points = np.asarray(mesh.points, dtype=float)
+    if points.shape[1] == 2:
+        raise MeshError(f"{source}: planar points (2 coordinates) cannot carry tetrahedra")
+
+    name = _tag_array(mesh, tags, source)
+    if name is not None:
+        regions, unassigned, boundaries = _groups_from_array(mesh, name, volume, facets, tet, source)
+        notes.append(f"groups from the cell-data array {name!r}")
+    elif any(not k.startswith("gmsh:") for k in mesh.cell_sets) or mesh.point_sets:
+        regions, unassigned, boundaries = _groups_from_sets(mesh, volume, facets, cells, source)
+        notes.append("groups from the cell and point sets")
+    else:
+        regions, unassigned = {"domain": np.ones(len(cells), dtype=bool)}, np.zeros(len(cells), dtype=bool)
+        boundaries = {"boundary": _exterior_facets(cells[:, :4])}
+        notes.append("no tags or sets: one region 'domain', the exterior faces are boundary 'boundary'")
+    if unassigned.any():
+        cautions.append(f"{int(unassigned.sum())} of {len(cells)} tetrahedra belong to no region: region 'unassigned'")
+        regions["unassigned"] = unassigned
+
+    counts, inverted, degenerate = orientation(points[cells[:, :4]])
+    if counts.degenerate:
+        first = int(np.flatnonzero(degenerate)[0])
+        raise MeshError(
+            f"{source}: {counts.degenerate} of {counts.cells} tetrahedra have no volume (degenerate; the first is "
+            f"cell {first}); fix the mesh"
+        )
+    if counts.inverted:
+        if not reorient:
+            raise MeshError(
+                f"{source}: {counts.inverted} of {counts.cells} tetrahedra are inverted (negative orientation: "
+                "vertices in mirrored order); rerun with --reorient to fix their vertex order"
+            )
+        cells[inverted] = cells[inverted][:, _SWAP[VOLUME[tet]]]  # facets keep their order: hyperfem ignores it
+        cautions.append(f"reoriented {counts.inverted} inverted tetrahedra (swapped two vertices)")
+
+    region_names = list(regions)
+    cell_tag = np.zeros(len(cells), dtype=np.int64)
+    for k, region in enumerate(region_names, start=1):
+        cell_tag[regions[region]] = k
+    facet_blocks = [np.asarray(f, dtype=np.int64) for f in boundaries.values()]
+    facet_tag = [np.full(len(f), k, dtype=np.int64) for k, f in enumerate(facet_blocks, start=1)]
+    blocks = [(tet, cells)] + [(FACET[tet], f) for f in facet_blocks]
+    tags_out = [cell_tag] + facet_tag
+    field_data = {r: np.array([k, 3]) for k, r in enumerate(region_names, start=1)}
+    for k, b in enumerate(boundaries, start=1):
+        if b in field_data:
+            raise MeshError(f"{source}: the name {b!r} is both a region and a boundary; rename one")
+        field_data[b] = np.array([k, 2])
+    out = meshio.Mesh(
+        points, blocks, cell_data={"gmsh:physical": tags_out, "gmsh:geometrical": tags_out}, field_data=field_data
+    )
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        meshio.write(target, out, file_format="gmsh22", binary=False)
+    except OSError as exc:
+        raise MeshError(f"{target}: cannot write: {exc.strerror or exc}") from None
+    _check_readable(target)
+    return Conversion(
+        path=target,
+        cell_type=tet,
+        cells=len(cells),
+        nodes=len(points),
+        regions={r: int(regions[r].sum()) for r in region_names},
+        boundaries={b: len(f) for b, f in boundaries.items()},
+        reoriented=counts.inverted if reorient else 0,
+        notes=notes,
+        warnings=cautions,
+    )
+
+
+def _check_readable(path: Path) -> None:
+    """Read the written file back with hyperfem (one rank)."""
+    from mpi4py import MPI
+
+    from hyperfem.mesh.io import read_mesh
+
+    try:
+        read_mesh(path, MPI.COMM_SELF)
+    except MeshError as exc:
+        raise MeshError(f"{path}: written, but hyperfem cannot read it back: {exc}") from None
+
+
+def describe_msh(path: str | Path) -> str:
+    """One line on a gmsh file: cell counts and physical groups (via meshio)."""
+    mesh = _read(Path(path))
+    counts: dict[str, int] = {}
+    for block in mesh.cells:
+        counts[block.type] = counts.get(block.type, 0) + len(block.data)
+    by_dim: Mapping[int, list[str]] = {}
+    for name, value in mesh.field_data.items():
+        by_dim.setdefault(int(np.asarray(value).reshape(-1)[1]), []).append(name)
+    cells = ", ".join(f"{v} {k}" for k, v in counts.items() if _dim(k) == 3)
+    regions = ", ".join(by_dim.get(3, [])) or "none"
+    boundaries = ", ".join(by_dim.get(2, [])) or "none"
+    return f"{path}: {cells}, {len(mesh.points)} nodes; regions: {regions}; boundaries: {boundaries}"

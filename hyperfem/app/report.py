@@ -1,0 +1,66 @@
+"""What the command line prints: progress lines, the mesh-quality table, warnings.
+
+Everything here formats; printing happens on rank 0 (:func:`say`, :func:`warn`).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from mpi4py import MPI
+
+from hyperfem.mesh.quality import MEASURES, MeshQuality
+
+__all__ = ["progress_line", "quality_table", "say", "warn"]
+
+
+def say(text: str, comm=MPI.COMM_WORLD) -> None:
+    """Print ``text`` on rank 0 (stdout, flushed)."""
+    if comm.rank == 0:
+        print(text, flush=True)
+
+
+def warn(text: str, comm=MPI.COMM_WORLD) -> None:
+    """Print ``hyperfem: warning: text`` on rank 0 (stderr)."""
+    if comm.rank == 0:
+        print(f"hyperfem: warning: {text}", file=sys.stderr, flush=True)
+
+
+def _vector(value) -> str:
+    return "(" + ", ".join(f"{v:.4g}" for v in value) + ")"
+
+
+def progress_line(row: dict) -> str:
+    """One line per recorded state: step, time, increment, Newton iterations, min J, reactions, probes."""
+    parts = [
+        f"step {row['step']:>3}",
+        f"t = {row['time']:.6g}",
+        f"dt = {row['dt']:.4g}",
+        f"newton {row['newton_iterations']}",
+    ]
+    if row.get("rejected"):
+        parts.append(f"rejected {row['rejected']}")
+    if row.get("min_J") == row.get("min_J"):  # not nan
+        parts.append(f"min J {row['min_J']:.4g}")
+    forces: dict[str, list[float]] = {}
+    for key, value in row.items():
+        if key.startswith("reaction_") and key[-3:-1] == "_F":
+            forces.setdefault(key[len("reaction_") : -3], []).append(value)
+    for name, force in forces.items():
+        if name != "total":
+            parts.append(f"F[{name}] = {_vector(force)}")
+    if "probe_displacement" in row and row["probe_displacement"]:
+        parts.append(f"u(probe 0) = {_vector(row['probe_displacement'][0])}")
+    if "kinetic_energy" in row:
+        parts.append(f"K = {row['kinetic_energy']:.4g}")
+    return "  ".join(parts)
+
+
+def quality_table(quality: MeshQuality) -> str:
+    """The seed 003 §5.6 measures as a table: min, p1, p5, median, mean, max (1 = regular)."""
+    columns = ("min", "p1", "p5", "p50", "mean", "max")
+    width = max(len(label) for label in MEASURES.values())
+    lines = [f"{'measure':<{width}}  " + "  ".join(f"{c:>6}" for c in columns)]
+    for key, stats in quality.stats.items():
+        lines.append(f"{MEASURES[key]:<{width}}  " + "  ".join(f"{stats[c]:6.3f}" for c in columns))
+    return "\n".join(lines)

@@ -1,0 +1,662 @@
+"""The sections of a case file: their declared keys and the checks that turn each into its spec.
+
+One function per section (``mesh``, ``material``, ``bc``, ``load``, ``stepping``,
+``solver``, ``output``, profiles): each checks its table with
+:func:`~hyperfem.app.schema.check_table` against the keys declared here
+(which depend on the entry's ``type`` or ``law``) and adds the checks that
+involve several keys (elastic constants given as one pair, conflicting
+conditions on one boundary, ...). :func:`hyperfem.app.casefile.check_case`
+calls them in order.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from hyperfem.app.schema import CaseFileError, Key, check_table, check_value, describe, join, suggestion
+from hyperfem.app.spec import (
+    AXES,
+    BC_TYPES,
+    FIBRE_TYPES,
+    FORMULATIONS,
+    LAME_LAWS,
+    LAWS,
+    LOAD_TYPES,
+    MIXED_LAWS,
+    PROFILE_TYPES,
+    REPRESENTATIONS,
+    SCHEMES,
+    BCSpec,
+    FibreSpec,
+    LoadSpec,
+    MaterialSpec,
+    MeshSpec,
+    OutputSpec,
+    ProblemSpec,
+    Profile,
+    SolverSpec,
+    SteppingSpec,
+)
+from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
+from hyperfem.simulation.fields import FIELDS, FORMATS
+
+__all__ = [
+    "TOP",
+    "check_bcs",
+    "check_fibres",
+    "check_loads",
+    "check_materials",
+    "check_mesh_table",
+    "check_output",
+    "check_problem",
+    "check_profile",
+    "check_solver",
+    "check_stepping",
+]
+
+VOLUMETRIC = tuple(VOLUMETRIC_LAWS)
+NAME = re.compile(r"[A-Za-z0-9_.+-]+")
+"""Allowed run names (they name the output files)."""
+
+# -- the schema ---------------------------------------------------------------------------------
+TOP = {
+    "name": Key("string", help="name of the run"),
+    "description": Key("string"),
+    "mesh": Key("table", required=True, help="a [mesh] table with file or generator"),
+    "problem": Key("table"),
+    "material": Key("tables", required=True, help="at least one [[material]]"),
+    "fibres": Key("table"),
+    "bc": Key("tables"),
+    "load": Key("tables"),
+    "stepping": Key("table"),
+    "solver": Key("table"),
+    "output": Key("table"),
+}
+
+MESH = {
+    "file": Key("string", help="gmsh .msh file, relative to the case file"),
+    "generator": Key("string", choices=("beam", "fusiform")),
+    "size": Key("number", above=0.0),
+    "order": Key("integer", minimum=1, below=3),
+    "geometry": Key("table"),
+}
+
+GEOMETRY = {
+    "belly_length": Key("number", above=0.0),
+    "belly_radius": Key("number", above=0.0),
+    "tendon_radius": Key("number", above=0.0),
+    "tendon_length": Key("number", above=0.0),
+    "sections": Key("integer", minimum=3),
+}
+
+PROBLEM = {
+    "formulation": Key("string", choices=FORMULATIONS),
+    "degree": Key("integer", minimum=1),
+    "pressure_degree": Key("integer", minimum=1),
+    "quadrature_degree": Key("integer", minimum=1),
+}
+
+_COMMON_MATERIAL = {
+    "law": Key("string", required=True, choices=LAWS),
+    "region": Key("string"),
+    "density": Key("number", above=0.0, help="mass density (> 0)"),
+}
+_LAME = {
+    "E": Key("number", above=0.0),
+    "nu": Key("number", above=-1.0, below=0.5),
+    "mu": Key("number", above=0.0),
+    "lambda": Key("number"),
+    "bulk_modulus": Key("number", above=0.0),
+    "volumetric": Key("string", choices=VOLUMETRIC),
+}
+_MOONEY = {
+    "c1": Key("number", above=0.0, required=True),
+    "c2": Key("number", minimum=0.0, required=True),
+    "K": Key("number", above=0.0, required=True),
+    "volumetric": Key("string", choices=VOLUMETRIC),
+}
+_MUSCLE = {
+    "preset": Key("string", choices=("muscle", "tendon")),
+    "c1": Key("number", above=0.0),
+    "c2": Key("number", minimum=0.0),
+    "K": Key("number", above=0.0),
+    "T_max": Key("number", minimum=0.0),
+    "lambda_ofl": Key("number", above=0.0),
+    "P1": Key("number", minimum=0.0),
+    "P2": Key("number", above=0.0),
+    "l_star": Key("number", above=1.0),
+    "volumetric": Key("string", choices=VOLUMETRIC),
+    "activation": Key("any"),
+}
+
+FIBRES = {
+    "laplace": {"source": Key("string", required=True), "target": Key("string", required=True)},
+    "constant": {"direction": Key("numbers", required=True)},
+    "file": {
+        "file": Key("string", required=True),
+        "name": Key("string", required=True),
+        "location": Key("string", choices=("point", "cell")),
+    },
+}
+
+_BC_COMMON = {"type": Key("string", required=True, choices=BC_TYPES), "boundary": Key("string", required=True)}
+BCS = {
+    "clamp": {},
+    "displacement": {
+        "value": Key("numbers", required=True),
+        "components": Key("any"),
+        "profile": Key("any"),
+    },
+    "rotation": {
+        "axis": Key("vector", length=3, required=True),
+        "center": Key("vector", length=3),
+        "angle": Key("number", required=True, help="angle in radians, scaled by the profile"),
+        "profile": Key("any"),
+    },
+}
+
+_LOAD_COMMON = {"type": Key("string", required=True, choices=LOAD_TYPES)}
+LOADS = {
+    "dead_traction": {
+        "boundary": Key("string", required=True),
+        "value": Key("any", required=True),
+        "profile": Key("any"),
+    },
+    "follower_traction": {
+        "boundary": Key("string", required=True),
+        "value": Key("any", required=True),
+        "profile": Key("any"),
+    },
+    "pressure": {
+        "boundary": Key("string", required=True),
+        "value": Key("number", required=True),
+        "profile": Key("any"),
+    },
+    "body_force": {"region": Key("string"), "value": Key("any", required=True), "profile": Key("any")},
+}
+
+QUASI_STATIC = {
+    "type": Key("string", choices=("quasi-static", "dynamic")),
+    "end": Key("number", help="final load factor (default 1)"),
+    "increment": Key("number", above=0.0),
+    "min_increment": Key("number", above=0.0),
+    "max_increment": Key("number", above=0.0),
+    "growth": Key("number", minimum=1.0),
+    "easy_iterations": Key("integer", minimum=1),
+    "max_steps": Key("integer", minimum=1),
+    "solve_initial": Key("boolean"),
+}
+DYNAMIC = {
+    "type": Key("string", choices=("quasi-static", "dynamic")),
+    "scheme": Key("string", choices=SCHEMES),
+    "beta": Key("number", above=0.0),
+    "gamma": Key("number", above=0.0),
+    "rho_inf": Key("number", minimum=0.0),
+    "dt": Key("number", above=0.0, required=True),
+    "t_end": Key("number", above=0.0, required=True),
+    "dt_min": Key("number", above=0.0),
+    "dt_max": Key("number", above=0.0),
+    "adaptive": Key("boolean"),
+    "tolerance": Key("number", above=0.0),
+    "grow_after": Key("integer", minimum=1),
+    "must_hit": Key("numbers"),
+    "max_steps": Key("integer", minimum=1),
+    "lumped_mass": Key("boolean"),
+    "damping": Key("table"),
+    "initial_acceleration": Key("boolean"),
+}
+DAMPING = {"alpha": Key("number", minimum=0.0), "beta": Key("number", minimum=0.0)}
+
+SOLVER = {
+    "rtol": Key("number", above=0.0),
+    "atol": Key("number", minimum=0.0),
+    "stol": Key("number", minimum=0.0),
+    "max_iterations": Key("integer", minimum=1),
+    "line_search": Key("string", choices=("bt", "basic", "cp", "l2", "nleqerr")),
+    "petsc_options": Key("table"),
+    "min_jacobian": Key("any"),
+    "step_filter": Key("string", choices=("auto", "exact", "bisection")),
+    "predictor": Key("boolean"),
+}
+_SUGAR = {
+    "rtol": "snes_rtol",
+    "atol": "snes_atol",
+    "stol": "snes_stol",
+    "max_iterations": "snes_max_it",
+    "line_search": "snes_linesearch_type",
+}
+
+OUTPUT = {
+    "directory": Key("string", help="output folder, relative to the working folder"),
+    "fields": Key("strings", choices=FIELDS),
+    "format": Key("string", choices=FORMATS),
+    "times": Key("numbers"),
+    "every": Key("number", above=0.0),
+    "csv": Key("boolean"),
+    "summary": Key("boolean"),
+    "convergence": Key("boolean"),
+    "probes": Key("matrix", length=3),
+    "reactions": Key("any"),
+    "checkpoint": Key("boolean"),
+    "checkpoint_every": Key("integer", minimum=1),
+    "checkpoint_keep": Key("integer", minimum=1),
+    "progress": Key("boolean"),
+}
+
+
+# -- sections -----------------------------------------------------------------------------------
+def check_profile(value: object, where: str) -> Profile:
+    """A time profile from a name (``"linear"``, ``"steady"``), a number (constant) or a table (``type = ...``)."""
+    if isinstance(value, str):
+        if value not in ("linear", "steady"):
+            raise CaseFileError(
+                f"{where}: unknown profile {value!r}{suggestion(value, PROFILE_TYPES)}; use \"linear\", \"steady\", "
+                "a number, or a table {type = \"ramp\" | \"table\", ...}"
+            )
+        return Profile(value, {"value": 1.0} if value == "steady" else {})
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return Profile("steady", {"value": check_value(value, Key("number"), where)})
+    if not isinstance(value, Mapping):
+        raise CaseFileError(f"{where}: expected a profile name, a number or a table, got {describe(value)}")
+    if "type" not in value:
+        raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(PROFILE_TYPES)})")
+    kind = check_value(value["type"], Key("string", choices=PROFILE_TYPES), join(where, "type"))
+    keys = {
+        "linear": {},
+        "steady": {"value": Key("number")},
+        "ramp": {
+            "t1": Key("number", required=True),
+            "final": Key("number"),
+            "initial": Key("number"),
+            "t0": Key("number"),
+        },
+        "table": {"times": Key("numbers", required=True), "values": Key("numbers", required=True)},
+    }[kind]
+    args = check_table(value, {"type": Key("string"), **keys}, where, what=f"a {kind!r} profile")
+    args.pop("type")
+    if kind == "steady":
+        args.setdefault("value", 1.0)
+    if kind == "ramp" and not args["t1"] > args.get("t0", 0.0):
+        raise CaseFileError(f"{where}: a ramp needs t1 > t0, got t0 = {args.get('t0', 0.0):g}, t1 = {args['t1']:g}")
+    if kind == "table":
+        t, v = args["times"], args["values"]
+        if len(t) != len(v) or len(t) < 2:
+            raise CaseFileError(
+                f"{where}: times and values need the same length (at least 2), got {len(t)} and {len(v)}"
+            )
+        if any(b <= a for a, b in zip(t, t[1:])):
+            raise CaseFileError(f"{where}.times: must increase strictly, got {list(t)}")
+    return Profile(kind, args)
+
+
+def check_mesh_table(table: Mapping, source: Path) -> MeshSpec:
+    """``[mesh]``: a file (relative to the case file ``source``) or a generator with its size, order and geometry."""
+    values = check_table(table, MESH, "mesh")
+    if ("file" in values) == ("generator" in values):
+        raise CaseFileError("mesh: give either file (a gmsh .msh) or generator (\"beam\", \"fusiform\"), not both")
+    if "file" in values:
+        extra = [k for k in ("size", "order", "geometry") if k in values]
+        if extra:
+            raise CaseFileError(f"mesh.{extra[0]}: only used with a generator, not with a mesh file")
+        path = Path(values["file"]).expanduser()
+        return MeshSpec(file=path if path.is_absolute() else (source.parent / path).resolve())
+    geometry = {}
+    if "geometry" in values:
+        if values["generator"] != "fusiform":
+            raise CaseFileError("mesh.geometry: only the fusiform generator has geometry parameters")
+        geometry = check_table(values["geometry"], GEOMETRY, "mesh.geometry")
+    return MeshSpec(
+        generator=values["generator"], size=values.get("size"), order=values.get("order"), geometry=geometry
+    )
+
+
+def _elastic_pair(values: Mapping, law: str, where: str, mixed: bool) -> None:
+    given = {k for k in ("E", "nu", "mu", "lambda", "bulk_modulus") if k in values}
+    pairs = [{"E", "nu"}, {"mu", "lambda"}, {"mu", "bulk_modulus"}]
+    if law == "arap":
+        pairs.append({"mu"})
+    if given not in pairs:
+        need = "E and nu, mu and lambda, or mu and bulk_modulus" + (", or mu alone" if law == "arap" else "")
+        shown = ", ".join(sorted(given)) or "none"
+        raise CaseFileError(f"{where}: give the elastic constants as {need} (given: {shown})")
+    if "volumetric" in values and not mixed:
+        raise CaseFileError(
+            f"{where}.volumetric: only used with formulation = \"mixed\" (law {law!r} has its own volume term)"
+        )
+
+
+def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool) -> MaterialSpec:
+    where = join("material", index)
+    if not isinstance(table, Mapping):
+        raise CaseFileError(f"{where}: expected a table, got {describe(table)}")
+    if "law" not in table:
+        raise CaseFileError(f"{where}: missing required key 'law' (one of {', '.join(LAWS)})")
+    law = check_value(table["law"], _COMMON_MATERIAL["law"], join(where, "law"))
+    own = _LAME if law in LAME_LAWS else (_MOONEY if law == "mooney_rivlin" else _MUSCLE)
+    nu = table.get("nu")
+    if isinstance(nu, (int, float)) and not isinstance(nu, bool) and math.isfinite(nu) and not -1.0 < nu < 0.5:
+        raise CaseFileError(
+            f"{where}.nu: Poisson's ratio must lie in (-1, 0.5), got {nu!r}; for a nearly incompressible "
+            "solid use nu < 0.5 (e.g. 0.499) or formulation = \"mixed\" with a bulk_modulus"
+        )
+    values = check_table(table, {**_COMMON_MATERIAL, **own}, where, what=f"a material with law {law!r}")
+    if mixed and law not in MIXED_LAWS:
+        raise CaseFileError(
+            f"{where}.law: {law!r} has no isochoric/volumetric split for formulation = \"mixed\" "
+            f"(mixed laws: {', '.join(MIXED_LAWS)}); use formulation = \"displacement\""
+        )
+    if law in LAME_LAWS:
+        _elastic_pair(values, law, where, mixed)
+    activation = None
+    if law == "muscle":
+        if not has_fibres:
+            raise CaseFileError(f"{where}: law \"muscle\" needs fibre directions: add a [fibres] table")
+        if "preset" not in values:
+            missing = [k for k in ("c1", "c2", "K", "T_max") if k not in values]
+            if missing:
+                raise CaseFileError(
+                    f"{where}: missing required key {missing[0]!r} (or give preset = \"muscle\" | \"tendon\")"
+                )
+        if "activation" in values:
+            raw = values["activation"]
+            if isinstance(raw, (int, float)) and not isinstance(raw, bool):
+                activation = check_value(raw, Key("number", minimum=0.0), join(where, "activation"))
+                if activation > 1.0:
+                    raise CaseFileError(f"{where}.activation: must lie in [0, 1], got {raw!r}")
+            else:
+                activation = check_profile(raw, join(where, "activation"))
+    skip = {"law", "region", "density", "volumetric", "preset", "activation"}
+    return MaterialSpec(
+        key=where,
+        law=law,
+        region=values.get("region"),
+        parameters={k: v for k, v in values.items() if k not in skip},
+        density=values.get("density"),
+        volumetric=values.get("volumetric"),
+        preset=values.get("preset"),
+        activation=activation,
+    )
+
+
+def check_materials(entries: list, mixed: bool, has_fibres: bool) -> tuple[MaterialSpec, ...]:
+    """The ``[[material]]`` entries: one without region (the whole body), or one per distinct region."""
+    if not entries:
+        raise CaseFileError("material: at least one [[material]] is needed")
+    materials = tuple(_material(i, t, mixed, has_fibres) for i, t in enumerate(entries))
+    whole = [m for m in materials if m.region is None]
+    if whole and len(materials) > 1:
+        raise CaseFileError(
+            f"{whole[0].key}.region: with several materials each needs a region (a cell group of the mesh)"
+        )
+    seen: dict[str, str] = {}
+    for m in materials:
+        if m.region is not None and m.region in seen:
+            raise CaseFileError(f"{m.key}.region: region {m.region!r} already has a material ({seen[m.region]})")
+        if m.region is not None:
+            seen[m.region] = m.key
+    return materials
+
+
+def check_fibres(table: Mapping) -> FibreSpec:
+    """``[fibres]``: Laplace rule, constant direction or a file's point/cell data."""
+    where = "fibres"
+    common = {
+        "type": Key("string", required=True, choices=FIBRE_TYPES),
+        "representation": Key("string", choices=REPRESENTATIONS),
+    }
+    if "type" not in table:
+        raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(FIBRE_TYPES)})")
+    kind = check_value(table["type"], common["type"], "fibres.type")
+    values = check_table(table, {**common, **FIBRES[kind]}, where, what=f"fibres of type {kind!r}")
+    options = {k: v for k, v in values.items() if k not in ("type", "representation")}
+    if kind == "file" and "representation" in values:
+        raise CaseFileError("fibres.representation: fibres from a file are P1 (location = \"point\") or DG0 (\"cell\")")
+    return FibreSpec(kind, options, values.get("representation", "DG0"))
+
+
+def _components(value: object, where: str) -> tuple[int, ...]:
+    if not isinstance(value, (list, tuple)) or not value:
+        raise CaseFileError(
+            f"{where}: expected a non-empty array of components (0, 1, 2 or \"x\", \"y\", \"z\"), "
+            f"got {describe(value)}"
+        )
+    out = []
+    for i, c in enumerate(value):
+        if isinstance(c, str) and c in AXES:
+            out.append(AXES[c])
+        elif isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 2:
+            out.append(c)
+        else:
+            raise CaseFileError(f"{where}[{i}]: expected 0, 1, 2 or \"x\", \"y\", \"z\", got {describe(c)}")
+    if len(set(out)) != len(out):
+        raise CaseFileError(f"{where}: components repeat: {list(value)}")
+    return tuple(out)
+
+
+def _bc(index: int, table: Mapping) -> BCSpec:
+    where = join("bc", index)
+    if not isinstance(table, Mapping):
+        raise CaseFileError(f"{where}: expected a table, got {describe(table)}")
+    if "type" not in table:
+        raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(BC_TYPES)})")
+    kind = check_value(table["type"], _BC_COMMON["type"], join(where, "type"))
+    values = check_table(table, {**_BC_COMMON, **BCS[kind]}, where, what=f"a bc of type {kind!r}")
+    components = _components(values["components"], join(where, "components")) if "components" in values else None
+    if components is not None and len(values["value"]) != len(components):
+        raise CaseFileError(
+            f"{where}.value: {len(values['value'])} values for {len(components)} components {list(components)}"
+        )
+    profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    return BCSpec(
+        key=where,
+        type=kind,
+        boundary=values["boundary"],
+        value=values.get("value"),
+        components=components,
+        axis=values.get("axis"),
+        center=values.get("center"),
+        angle=values.get("angle"),
+        profile=profile,
+    )
+
+
+def check_bcs(entries: Sequence[Mapping]) -> tuple[BCSpec, ...]:
+    """The ``[[bc]]`` entries; two conditions on one boundary may not prescribe the same component."""
+    bcs = tuple(_bc(i, t) for i, t in enumerate(entries))
+    for j, b in enumerate(bcs):
+        for a in bcs[:j]:
+            if a.boundary != b.boundary:
+                continue
+            ca, cb = a.constrained, b.constrained
+            common = sorted((ca or {0, 1, 2}) & (cb or {0, 1, 2}))
+            if common:
+                axes = ", ".join("xyz"[c] for c in common)
+                raise CaseFileError(
+                    f"{b.key}: conflicts with {a.key} on boundary {b.boundary!r}: both prescribe component(s) {axes} "
+                    f"({a.type} and {b.type}); give each component of a boundary one condition"
+                )
+    return bcs
+
+
+def _load_value(value: object, kind: str, where: str) -> object:
+    if kind == "pressure":
+        return value
+    if isinstance(value, Mapping):
+        field_ = check_table(value, {"matrix": Key("matrix", required=True), "offset": Key("numbers")}, where,
+                             what="an affine field (A x + b)")
+        rows = field_["matrix"]
+        if any(len(r) != len(rows) for r in rows):
+            raise CaseFileError(
+                f"{where}.matrix: must be square (one row per component), got {len(rows)} rows of "
+                f"{[len(r) for r in rows]} entries"
+            )
+        if "offset" in field_ and len(field_["offset"]) != len(rows):
+            raise CaseFileError(f"{where}.offset: {len(field_['offset'])} entries for a {len(rows)}x{len(rows)} matrix")
+        return field_
+    return check_value(value, Key("numbers"), where)
+
+
+def _load(index: int, table: Mapping) -> LoadSpec:
+    where = join("load", index)
+    if not isinstance(table, Mapping):
+        raise CaseFileError(f"{where}: expected a table, got {describe(table)}")
+    if "type" not in table:
+        raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(LOAD_TYPES)})")
+    kind = check_value(table["type"], _LOAD_COMMON["type"], join(where, "type"))
+    values = check_table(table, {**_LOAD_COMMON, **LOADS[kind]}, where, what=f"a load of type {kind!r}")
+    profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    return LoadSpec(
+        key=where,
+        type=kind,
+        boundary=values.get("boundary"),
+        region=values.get("region"),
+        value=_load_value(values["value"], kind, join(where, "value")),
+        profile=profile,
+    )
+
+
+def check_stepping(table: Mapping) -> SteppingSpec:
+    """``[stepping]``: a quasi-static ramp (default) or a time integration (``type = "dynamic"``)."""
+    kind = check_value(table.get("type", "quasi-static"), QUASI_STATIC["type"], "stepping.type")
+    own, other, other_kind = (QUASI_STATIC, DYNAMIC, "dynamic") if kind == "quasi-static" else (
+        DYNAMIC, QUASI_STATIC, "quasi-static"
+    )
+    for key in table:
+        if key not in own and key in other:
+            raise CaseFileError(
+                f"stepping.{key}: a key of {other_kind} stepping, not of {kind} stepping "
+                f"(set type = \"{other_kind}\" for a {'time integration' if other_kind == 'dynamic' else 'load ramp'})"
+            )
+    if kind == "quasi-static":
+        values = check_table(table, QUASI_STATIC, "stepping", what="quasi-static stepping")
+        names = {"increment": "initial_increment"}
+        options = {
+            names.get(k, k): v for k, v in values.items() if k not in ("type", "end", "solve_initial")
+        }
+        return SteppingSpec(
+            type=kind, options=options, end=values.get("end"), solve_initial=values.get("solve_initial", False)
+        )
+    values = check_table(table, DYNAMIC, "stepping", what="dynamic stepping")
+    scheme = values.get("scheme", "newmark")
+    own = {"newmark": ("beta", "gamma"), "generalized_alpha": ("rho_inf",)}.get(scheme, ())
+    for name in ("beta", "gamma", "rho_inf"):
+        if name in values and name not in own:
+            raise CaseFileError(f"stepping.{name}: not a parameter of scheme {scheme!r}")
+    if "rho_inf" in values and values["rho_inf"] > 1.0:
+        raise CaseFileError(f"stepping.rho_inf: must lie in [0, 1], got {values['rho_inf']!r}")
+    damping = check_table(values["damping"], DAMPING, "stepping.damping") if "damping" in values else {}
+    skip = {"type", "scheme", "beta", "gamma", "rho_inf", "lumped_mass", "damping", "initial_acceleration"}
+    return SteppingSpec(
+        type=kind,
+        options={k: v for k, v in values.items() if k not in skip},
+        scheme=scheme,
+        scheme_options={k: values[k] for k in own if k in values},
+        lumped_mass=values.get("lumped_mass", False),
+        damping=damping,
+        initial_acceleration=values.get("initial_acceleration", True),
+    )
+
+
+def check_solver(table: Mapping) -> SolverSpec:
+    """``[solver]``: SNES tolerances (sugar for ``snes_*``), PETSc options as given, guard and predictor options."""
+    values = check_table(table, SOLVER, "solver")
+    petsc = {}
+    for key, value in dict(values.get("petsc_options", {})).items():
+        where = f"solver.petsc_options.{key}"
+        if key.startswith("-"):
+            raise CaseFileError(f"{where}: write PETSc option names without the leading '-' (e.g. ksp_type)")
+        if not isinstance(value, (str, int, float, bool)):
+            raise CaseFileError(f"{where}: expected a string, number or boolean, got {describe(value)}")
+        petsc[key] = value
+    for sugar, option in _SUGAR.items():
+        if sugar in values:
+            if option in petsc:
+                raise CaseFileError(f"solver.{sugar}: also given as solver.petsc_options.{option}; give it once")
+            petsc[option] = values[sugar]
+    options = {k: values[k] for k in ("step_filter", "predictor") if k in values}
+    if "min_jacobian" in values:
+        mj = values["min_jacobian"]
+        if mj is False:
+            options["min_jacobian"] = None
+        elif mj == "auto" or (isinstance(mj, (int, float)) and not isinstance(mj, bool)):
+            options["min_jacobian"] = mj if mj == "auto" else check_value(mj, Key("number"), "solver.min_jacobian")
+        else:
+            raise CaseFileError(f"solver.min_jacobian: expected a number, \"auto\" or false, got {describe(mj)}")
+    return SolverSpec(petsc_options=petsc, options=options)
+
+
+def check_output(
+    table: Mapping,
+    name: str,
+    directory: str | Path | None,
+    stepping: SteppingSpec,
+    bcs: Sequence[BCSpec] = (),
+    fibres: FibreSpec | None = None,
+    materials: Sequence[MaterialSpec] = (),
+) -> OutputSpec:
+    """``[output]``: files, fields, probes, reactions, checkpoints (``directory`` replaces its folder)."""
+    values = check_table(table, OUTPUT, "output")
+    if "times" in values and "every" in values:
+        raise CaseFileError("output.every: give either times or every, not both")
+    times = values.get("times")
+    if "every" in values:
+        end = stepping.options.get("t_end") if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
+        every = values["every"]
+        n = int(round(abs(end) / every))
+        times = tuple(k * every * (1.0 if end >= 0 else -1.0) for k in range(1, n + 1))
+    fields = tuple(values.get("fields", ("displacement",)))
+    if "fibre_stretch" in fields and fibres is None:
+        raise CaseFileError("output.fields: fibre_stretch needs a [fibres] table")
+    if "activation" in fields and not any(isinstance(m.activation, Profile) for m in materials):
+        raise CaseFileError("output.fields: activation needs a material with a time-dependent activation")
+    if "format" in values and not fields:
+        raise CaseFileError("output.format: no fields are written (fields = [])")
+    held = list(dict.fromkeys(bc.boundary for bc in bcs))
+    raw = values.get("reactions", "all")
+    if raw == "all":
+        reactions = None
+    elif raw is False:
+        reactions = ()
+    else:
+        reactions = check_value(raw, Key("strings"), "output.reactions")
+        for i, boundary in enumerate(reactions):
+            if boundary not in held:
+                raise CaseFileError(
+                    f"output.reactions[{i}]: boundary {boundary!r} has no Dirichlet condition"
+                    f"{suggestion(boundary, held)} (boundaries with one: {', '.join(held) or 'none'})"
+                )
+    if values.get("checkpoint", True) is False:
+        if "checkpoint_every" in values or "checkpoint_keep" in values:
+            key = "checkpoint_every" if "checkpoint_every" in values else "checkpoint_keep"
+            raise CaseFileError(f"output.{key}: checkpoints are off (checkpoint = false)")
+        every = None
+    else:
+        every = values.get("checkpoint_every", 10)
+    folder = Path(directory) if directory is not None else Path(values.get("directory", Path("output") / name))
+    return OutputSpec(
+        directory=folder,
+        fields=fields,
+        format=values.get("format", "vtx"),
+        times=times,
+        csv=values.get("csv", True),
+        summary=values.get("summary", True),
+        convergence=values.get("convergence", True),
+        probes=values.get("probes", ()),
+        reactions=reactions,
+        checkpoint_every=every,
+        checkpoint_keep=values.get("checkpoint_keep"),
+        progress=values.get("progress", True),
+    )
+
+
+def check_loads(entries: Sequence[Mapping]) -> tuple[LoadSpec, ...]:
+    """The ``[[load]]`` entries."""
+    return tuple(_load(i, t) for i, t in enumerate(entries))
+
+
+def check_problem(table: Mapping) -> ProblemSpec:
+    """``[problem]``."""
+    return ProblemSpec(**check_table(table, PROBLEM, "problem"))

@@ -1,0 +1,306 @@
+"""The checked case: one frozen dataclass per section of a TOML case file.
+
+:func:`hyperfem.app.casefile.load_case` returns a :class:`Case`; its sections
+hold the values that were given (absent optional keys stay ``None`` or absent,
+so the library's defaults apply), already checked.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = [
+    "LAME_LAWS",
+    "LAWS",
+    "MIXED_LAWS",
+    "BCSpec",
+    "Case",
+    "FibreSpec",
+    "LoadSpec",
+    "MaterialSpec",
+    "MeshSpec",
+    "OutputSpec",
+    "ProblemSpec",
+    "Profile",
+    "SolverSpec",
+    "SteppingSpec",
+]
+
+# -- laws ------------------------------------------------------------------------------
+LAME_LAWS = (
+    "neo_hookean",
+    "robust_neo_hookean",
+    "saint_venant_kirchhoff",
+    "linear_elastic",
+    "stable_neo_hookean",
+    "fixed_corotated",
+    "corotational_linear",
+    "arap",
+)
+"""Isotropic laws with the elastic constants E/nu, mu/lambda or mu/bulk_modulus."""
+
+LAWS = (*LAME_LAWS, "mooney_rivlin", "muscle")
+"""Every ``law`` a ``[[material]]`` can name."""
+
+MIXED_LAWS = ("neo_hookean", "mooney_rivlin", "muscle")
+"""Laws with an isochoric/volumetric split, usable with ``formulation = "mixed"``."""
+
+FORMULATIONS = ("displacement", "mixed")
+SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
+FIBRE_TYPES = ("laplace", "constant", "file")
+REPRESENTATIONS = ("DG0", "P1", "quadrature")
+BC_TYPES = ("clamp", "displacement", "rotation")
+LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
+PROFILE_TYPES = ("linear", "steady", "ramp", "table")
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+
+# -- the checked case ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class Profile:
+    """A time profile :math:`f(t)` (module docstring).
+
+    Attributes:
+        kind: ``"linear"``, ``"steady"``, ``"ramp"`` or ``"table"``.
+        args: The given arguments (``value``; ``t1``, ``final``, ``initial``, ``t0``; ``times``, ``values``).
+    """
+
+    kind: str
+    args: Mapping[str, object] = field(default_factory=dict)
+
+    @property
+    def kinks(self) -> tuple[float, ...]:
+        """Times where :math:`f` is not smooth: must-hit times of a dynamic run."""
+        if self.kind == "ramp":
+            return (float(self.args.get("t0", 0.0)), float(self.args["t1"]))
+        if self.kind == "table":
+            return tuple(self.args["times"])
+        return ()
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """``[mesh]``: a file or a generator.
+
+    Attributes:
+        file: The gmsh file (absolute), or ``None``.
+        generator: ``"beam"`` or ``"fusiform"``, or ``None``.
+        size: Element size of the generator (``None``: its default).
+        order: Geometric order of the generated tetrahedra.
+        geometry: Fusiform dimensions (:class:`~hyperfem.mesh.FusiformGeometry` fields).
+    """
+
+    file: Path | None = None
+    generator: str | None = None
+    size: float | None = None
+    order: int | None = None
+    geometry: Mapping[str, object] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ProblemSpec:
+    """``[problem]``: formulation and discretisation (``None``: the library default)."""
+
+    formulation: str = "displacement"
+    degree: int | None = None
+    pressure_degree: int | None = None
+    quadrature_degree: int | None = None
+
+
+@dataclass(frozen=True)
+class MaterialSpec:
+    """One ``[[material]]``.
+
+    Attributes:
+        key: Key path (``"material[0]"``).
+        law: One of :data:`LAWS`.
+        region: Cell group, or ``None`` for the whole domain.
+        parameters: The law's constants as given (``E``, ``nu``, ``c1``, ...).
+        density: Mass density, or ``None``.
+        volumetric: Volumetric law name, or ``None`` (the law's default).
+        preset: ``"muscle"``/``"tendon"`` parameter set of the muscle law, or ``None``.
+        activation: Muscle activation: a number, a :class:`Profile`, or ``None`` (passive).
+    """
+
+    key: str
+    law: str
+    region: str | None = None
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    density: float | None = None
+    volumetric: str | None = None
+    preset: str | None = None
+    activation: float | Profile | None = None
+
+
+@dataclass(frozen=True)
+class FibreSpec:
+    """``[fibres]``: how the unit fibre field is made.
+
+    Attributes:
+        type: ``"laplace"``, ``"constant"`` or ``"file"``.
+        options: The given keys of that type (``source``, ``target``; ``direction``; ``file``, ``name``, ``location``).
+        representation: ``"DG0"``, ``"P1"`` or ``"quadrature"``.
+    """
+
+    type: str
+    options: Mapping[str, object] = field(default_factory=dict)
+    representation: str = "DG0"
+
+
+@dataclass(frozen=True)
+class BCSpec:
+    """One ``[[bc]]`` (the given keys of its type)."""
+
+    key: str
+    type: str
+    boundary: str
+    value: tuple[float, ...] | None = None
+    components: tuple[int, ...] | None = None
+    axis: tuple[float, ...] | None = None
+    center: tuple[float, ...] | None = None
+    angle: float | None = None
+    profile: Profile | None = None
+
+    @property
+    def constrained(self) -> frozenset[int] | None:
+        """Constrained components (``None``: all of them)."""
+        return None if self.components is None else frozenset(self.components)
+
+
+@dataclass(frozen=True)
+class LoadSpec:
+    """One ``[[load]]``.
+
+    Attributes:
+        key: Key path.
+        type: One of :data:`LOAD_TYPES`.
+        boundary: Facet group (tractions, pressure).
+        region: Cell group of a body force (``None``: everywhere).
+        value: A vector, a number (pressure), or ``{"matrix", "offset"}`` of an affine field.
+        profile: The time profile, or ``None`` (linear).
+    """
+
+    key: str
+    type: str
+    boundary: str | None = None
+    region: str | None = None
+    value: object = None
+    profile: Profile | None = None
+
+
+@dataclass(frozen=True)
+class SteppingSpec:
+    """``[stepping]``.
+
+    Attributes:
+        type: ``"quasi-static"`` or ``"dynamic"``.
+        options: The given keyword arguments of :class:`~hyperfem.LoadStepping` or
+            :class:`~hyperfem.dynamics.TimeStepping` (case names translated).
+        end: Final load factor of a quasi-static ramp (``None``: 1).
+        solve_initial: Solve for equilibrium at the start (quasi-static).
+        scheme: Time integrator (dynamic).
+        scheme_options: ``beta``/``gamma`` (Newmark), ``rho_inf`` (generalized-alpha).
+        lumped_mass: Lumped (vertex-rule) mass.
+        damping: Rayleigh ``alpha``/``beta`` as given.
+        initial_acceleration: Solve for the initial acceleration (dynamic).
+    """
+
+    type: str = "quasi-static"
+    options: Mapping[str, object] = field(default_factory=dict)
+    end: float | None = None
+    solve_initial: bool = False
+    scheme: str = "newmark"
+    scheme_options: Mapping[str, float] = field(default_factory=dict)
+    lumped_mass: bool = False
+    damping: Mapping[str, float] = field(default_factory=dict)
+    initial_acceleration: bool = True
+
+    @property
+    def dynamic(self) -> bool:
+        """Whether the run is a time integration."""
+        return self.type == "dynamic"
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """``[solver]``.
+
+    Attributes:
+        petsc_options: SNES/KSP options (sugar keys translated, ``petsc_options`` merged).
+        options: Other :class:`~hyperfem.NewtonSolver` keyword arguments as given.
+    """
+
+    petsc_options: Mapping[str, object] = field(default_factory=dict)
+    options: Mapping[str, object] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """``[output]``.
+
+    Attributes:
+        directory: Output folder.
+        fields: Fields of the ParaView time series (:data:`hyperfem.simulation.fields.FIELDS`); empty: none.
+        format: ``"vtx"`` (ADIOS2) or ``"xdmf"``.
+        times: Write field frames only at these times (``None``: every step).
+        csv: One CSV line per step.
+        summary: The JSON summary (rewritten after every step).
+        convergence: The Newton residuals of every step (JSON lines).
+        probes: Reference points whose displacement is recorded.
+        reactions: Dirichlet boundaries whose reaction force and moment are recorded
+            (``None``: every one; empty: none).
+        checkpoint_every: Steps between checkpoints (``None``: no checkpoints).
+        checkpoint_keep: Checkpoints kept.
+        progress: Print a line per step (rank 0).
+    """
+
+    directory: Path
+    fields: tuple[str, ...] = ("displacement",)
+    format: str = "vtx"
+    times: tuple[float, ...] | None = None
+    csv: bool = True
+    summary: bool = True
+    convergence: bool = True
+    probes: tuple[tuple[float, ...], ...] = ()
+    reactions: tuple[str, ...] | None = None
+    checkpoint_every: int | None = 10
+    checkpoint_keep: int | None = None
+    progress: bool = True
+
+
+@dataclass(frozen=True)
+class Case:
+    """A checked case file.
+
+    Attributes:
+        source: The case file.
+        name: Name of the run (output files).
+        description: Free text.
+        mesh, problem, materials, fibres, bcs, loads, stepping, solver, output: The sections.
+    """
+
+    source: Path
+    name: str
+    description: str
+    mesh: MeshSpec
+    problem: ProblemSpec
+    materials: tuple[MaterialSpec, ...]
+    fibres: FibreSpec | None
+    bcs: tuple[BCSpec, ...]
+    loads: tuple[LoadSpec, ...]
+    stepping: SteppingSpec
+    solver: SolverSpec
+    output: OutputSpec
+
+    @property
+    def dynamic(self) -> bool:
+        """Whether the run is a time integration."""
+        return self.stepping.dynamic
+
+    @property
+    def mixed(self) -> bool:
+        """Whether the problem is the three-field (mixed) one."""
+        return self.problem.formulation == "mixed"
