@@ -74,6 +74,8 @@ demos: bootstrap
 	$(PY) demos/muscle.py
 	$(PY) demos/dynamics.py --case bend --t-end 0.5
 	$(PY) demos/muscle_dynamics.py
+	$(PY) demos/methods.py --case bend --t-end 0.1
+	$(PY) demos/realtime.py --steps 90
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)

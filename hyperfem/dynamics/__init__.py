@@ -24,6 +24,7 @@ from hyperfem.dynamics.incremental import DisplacementBlock, DynamicState, Incre
 from hyperfem.dynamics.integrators import BackwardEuler, GeneralizedAlpha, Newmark, QuasiStatic, TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity, lumped_mass, total_mass
 from hyperfem.dynamics.motion import Ramp, RigidRotation, Steady, rotating_surface, rotation_matrix
+from hyperfem.dynamics.realtime import RealtimeConfig, RealtimeStep, RealtimeStepper, RealtimeSummary
 from hyperfem.dynamics.semi_implicit import (
     SemiImplicitStage,
     integrate_semi_implicit,
@@ -47,6 +48,10 @@ __all__ = [
     "QuasiStatic",
     "Ramp",
     "RayleighDamping",
+    "RealtimeConfig",
+    "RealtimeStep",
+    "RealtimeStepper",
+    "RealtimeSummary",
     "RigidRotation",
     "SemiImplicitStage",
     "StableStep",
