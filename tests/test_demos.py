@@ -119,4 +119,5 @@ def test_methods_demo(shared_tmp):
     assert set(m) >= {"I-FEM", "SI-FEM", "L-FEM", "FVM", "SE-FEM"} and all(r["completed"] for r in m.values())
     assert m["SI-FEM"]["newton_iterations_per_step"] == 1 and m["FVM"]["newton_iterations_per_step"] == 0
     assert m["FVM"]["dt_crit"] == pytest.approx(0.012896, rel=1e-3)  # h_min / c on beam_h2 (lumped mass)
+    MPI.COMM_WORLD.Barrier()  # rank 0 writes the summary
     assert (shared_tmp / "bend.json").exists()
