@@ -205,3 +205,19 @@ def test_run_reports_mesh_quality_and_warns_on_a_poor_mesh(capsys):
     else:
         sim.run()
     assert sim.mesh_quality.stats["volume_length"]["min"] < 0.1
+
+
+def test_progress_bar_on_a_terminal_plain_lines_otherwise(capsys):
+    """Progress redraws one bar line when asked (a terminal), and prints a line per state in logs."""
+    problem = _pulled(degree=1)
+    policy = hf.StepPolicy(increment=0.5, grow_after=99)
+    Simulation(problem, hf.NewtonSolver(problem), policy, [Progress(lambda row: f"t={row['time']}", bar=True)]).run()
+    out = capsys.readouterr().out
+    if MPI.COMM_WORLD.rank == 0:
+        assert "\r[" + "#" * 10 + "." * 10 + "]  50 %  t=0.5" in out and "\r[" + "#" * 20 + "] 100 %  t=1.0" in out
+        assert out.endswith("\n")
+    problem = _pulled(degree=1)
+    Simulation(problem, hf.NewtonSolver(problem), policy, [Progress(lambda row: f"t={row['time']}")]).run()
+    out = capsys.readouterr().out
+    if MPI.COMM_WORLD.rank == 0:  # pytest's captured stdout is not a terminal
+        assert "\r" not in out and out.splitlines()[1:] == ["t=0.0", "t=0.5", "t=1.0"]

@@ -31,13 +31,15 @@ def _vector(value) -> str:
 
 
 def progress_line(row: dict) -> str:
-    """One line per recorded state: step, time, increment, Newton iterations, min J, reactions, probes."""
+    """One line per recorded state: step, time, increment, Newton iterations, residual, min J, reactions, probes."""
     parts = [
         f"step {row['step']:>3}",
         f"t = {row['time']:.6g}",
         f"dt = {row['dt']:.4g}",
         f"newton {row['newton_iterations']}",
     ]
+    if row.get("residual") == row.get("residual"):  # not nan
+        parts.append(f"|r| {row['residual']:.2e}")
     if row.get("rejected"):
         parts.append(f"rejected {row['rejected']}")
     if row.get("min_J") == row.get("min_J"):  # not nan

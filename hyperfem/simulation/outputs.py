@@ -43,6 +43,9 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import shutil
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -395,30 +398,65 @@ def read_convergence(path: str | Path) -> list[dict]:
 
 
 class Progress(Output):
-    """Print a line per recorded state on rank 0.
+    """Print a line per recorded state on rank 0, or a progress bar on a terminal.
 
     Args:
         line: Makes the line from the row.
         every: Print every n-th step only.
         initial: Print the initial state too.
+        bar: Redraw one line with a bar of the time reached (``[#####.....] 50 %``)
+            instead of printing a line per state. ``None``: when standard output
+            is a terminal and the ``CI`` environment variable is unset (log files
+            and CI get plain lines).
     """
 
-    def __init__(self, line: Callable[[dict], str], *, every: int = 1, initial: bool = True):
+    def __init__(
+        self, line: Callable[[dict], str], *, every: int = 1, initial: bool = True, bar: bool | None = None
+    ):
         self.line = line
         self.every = every
         self.initial = initial
+        self.bar = bar
+        self._drawn = False
 
     def start(self, sim) -> None:
         """Print the mesh-quality line before the first solve (rank 0)."""
         super().start(sim)
+        if self.bar is None:
+            self.bar = bool(getattr(sys.stdout, "isatty", lambda: False)()) and not os.environ.get("CI")
+        self._drawn = False
+        self._t0 = sim.time
         if sim.mesh_quality is not None and sim.comm.rank == 0:
             print(sim.mesh_quality.summary_line(), flush=True)
 
+    def _bar_line(self, sim, text: str) -> str:
+        span = sim.policy.end - self._t0
+        fraction = 1.0 if span == 0 else min(max((sim.time - self._t0) / span, 0.0), 1.0)
+        width = 20
+        filled = int(round(fraction * width))
+        head = f"[{'#' * filled}{'.' * (width - filled)}] {100 * fraction:3.0f} %  "
+        columns = shutil.get_terminal_size((100, 24)).columns
+        return (head + text)[: max(columns - 1, len(head))]
+
     def write(self, sim, step: StepRecord | None) -> None:
-        """Print."""
+        """Print (or redraw the bar)."""
         due = self.initial if step is None else step.step % self.every == 0
-        if due and sim.comm.rank == 0:
-            print(self.line(sim.rows[-1]), flush=True)
+        if not (due and sim.comm.rank == 0):
+            return
+        text = self.line(sim.rows[-1])
+        if self.bar:
+            line = self._bar_line(sim, text)
+            print("\r" + line + "\x1b[K", end="", flush=True)
+            self._drawn = True
+        else:
+            print(text, flush=True)
+
+    def close(self, sim) -> None:
+        """End the bar's line."""
+        if self._drawn and sim.comm.rank == 0:
+            print(flush=True)
+        self._drawn = False
+        super().close(sim)
 
 
 class Quantity(Output):

@@ -314,6 +314,7 @@ class Simulation:
             "rejected": 0 if record is None else record.rejected,
             "error_estimate": float("nan") if record is None else record.error,
             "min_J": solve.min_J if solve is not None else self.solver.min_J(),
+            "residual": (solve.residual_norms[-1] if solve is not None and solve.residual_norms else float("nan")),
             "reason": solve.reason_name if solve is not None else "",
             "krylov_iterations": sum(r.linear_iterations for r in record.solve_records) if record is not None
             else (solve.linear_iterations if solve else 0),
