@@ -1,14 +1,16 @@
 r"""Checkpoint files: the owned dof values of functions, one NumPy file per rank, and a JSON record.
 
-No checkpoint library is available to hyperfem (``adios4dolfinx`` is not a
-dependency, and DOLFINx has no restart of its own), so this is a small format
-of its own. One checkpoint is a folder::
+No checkpoint library is available to hyperfem (``adios4dolfinx`` is not
+importable on either install route, and DOLFINx has no restart of its own),
+so this is a small format of its own. One checkpoint is a folder::
 
     <folder>/step-000012/
         meta.json                   everything but the arrays (rank 0, written last)
         rank-0000-of-0002.npz       per rank, for every function NAME:
                                       NAME         owned dof values (float64)
                                       NAME.global  their global dof indices (int64, block size unrolled)
+                                      NAME.keys    partition-independent keys of the owned dof blocks
+                                                   (int64, 6 columns; absent where no key exists)
                                     and "original_cells": the input indices of the owned cells
         rank-0001-of-0002.npz
     <folder>/latest.json            {"path": "step-000012", "step": 12}
@@ -17,12 +19,29 @@ The step folder is first written as ``step-000012.partial`` and renamed when
 complete; ``latest.json`` is replaced atomically after that, so a run killed
 while writing a checkpoint leaves the previous one intact and named.
 
-A restart must use the same mesh on the same number of ranks: DOLFINx then
-partitions and numbers it the same way, and each rank finds its own dofs
-(checked: the owned cells' input indices and the global dof indices must be
-those of the file; the values are placed by global index). Values are copied
-bit for bit, so a restarted run repeats the arithmetic of an uninterrupted one.
-Mismatches raise :class:`CheckpointError` on every rank.
+**Reading back.** On the same mesh distributed the same way (the same number
+of ranks; checked through the owned cells' input indices) each rank reads its
+own file and places the values by global dof index, bit for bit.
+
+On any other number of ranks (or another distribution of the same mesh) every
+rank reads all the rank files and finds its dofs by **key**: a dof lies on a
+mesh entity (vertex, edge, face, or the cell interior) of its cell, and is the
+``j``-th dof of the element on that entity; the key is
+
+    (entity dimension, the entity's vertices as input node indices, sorted, padded with -1, j)
+
+and, for dofs inside a cell, (cell dimension, input cell index, -1, -1, -1, j).
+Input node and cell indices are those of the mesh file, so the key of a dof
+does not depend on how the mesh was partitioned or numbered. This holds when
+the place of a dof on its entity does not depend on the entity's orientation:
+every element whose scalar parts have at most one dof per edge and per face
+(Lagrange and serendipity of degree <= 2, DG and quadrature spaces of any
+degree, and mixed and blocked elements of those) and needs no dof
+transformations. Other spaces are stored without keys and restart on the
+same number of ranks only.
+
+Mismatches (another mesh, another space, a key not found) raise
+:class:`CheckpointError` on every rank.
 """
 
 from __future__ import annotations
@@ -33,8 +52,10 @@ import shutil
 from collections.abc import Mapping
 from pathlib import Path
 
+import basix
 import numpy as np
 from dolfinx import fem
+from mpi4py import MPI
 
 from hyperfem.errors import CheckpointError, OutputError
 from hyperfem.io.results import on_rank0, write_json
@@ -42,6 +63,7 @@ from hyperfem.io.results import on_rank0, write_json
 __all__ = [
     "FORMAT",
     "CheckpointError",
+    "dof_keys",
     "owned_values",
     "read_functions",
     "read_meta",
@@ -50,7 +72,7 @@ __all__ = [
     "write_checkpoint",
 ]
 
-FORMAT = "hyperfem-checkpoint/1"
+FORMAT = "hyperfem-checkpoint/2"
 """Format tag stored in ``meta.json``."""
 
 
@@ -71,6 +93,73 @@ def owned_values(f: fem.Function) -> tuple[np.ndarray, np.ndarray]:
     blocks = imap.local_to_global(np.arange(n, dtype=np.int32)).astype(np.int64)
     indices = (blocks[:, None] * bs + np.arange(bs, dtype=np.int64)[None, :]).reshape(-1)
     return f.x.array[: n * bs].astype(np.float64, copy=True), indices
+
+
+KEY_WIDTH = 6
+"""Columns of a dof key: entity dimension, four vertex (or cell) indices, index on the entity."""
+
+
+def _leaves(element):
+    """The basix elements of a (mixed, blocked) basix.ufl element; ``None`` for a leaf without one."""
+    subs = getattr(element, "sub_elements", None)
+    if subs and type(element).__name__ != "_BasixElement":
+        for sub in subs:
+            yield from _leaves(sub)
+        return
+    try:
+        yield element.basix_element
+    except (AttributeError, NotImplementedError):  # quadrature and other custom elements
+        yield None
+
+
+def _keyable(V: fem.FunctionSpace) -> bool:
+    """Whether the dofs of ``V`` have partition-independent keys (module docstring)."""
+    if V.element.needs_dof_transformations:
+        return False
+    tdim = V.mesh.topology.dim
+    for leaf in _leaves(V.ufl_element()):
+        if leaf is None:  # quadrature and other custom elements: all their dofs are inside the cell
+            continue
+        for dim in range(1, tdim):
+            if any(len(dofs) > 1 for dofs in leaf.entity_dofs[dim]):
+                return False
+    return True
+
+
+def dof_keys(V: fem.FunctionSpace) -> np.ndarray | None:
+    """Partition-independent keys of the owned dof blocks of ``V`` (module docstring), or ``None``.
+
+    Returns:
+        ``(owned blocks, 6)`` int64 array, one row per owned dof block, or
+        ``None`` when the space has no such keys.
+    """
+    if not _keyable(V):
+        return None
+    mesh = V.mesh
+    tdim = mesh.topology.dim
+    cmap = mesh.topology.index_map(tdim)
+    ncells = cmap.size_local + cmap.num_ghosts
+    reference = basix.topology(mesh.basix_cell())
+    nverts = len(reference[0])
+    nodes = np.asarray(mesh.geometry.input_global_indices, dtype=np.int64)
+    corners = nodes[mesh.geometry.dofmaps[0][:ncells, :nverts]]  # vertices come first in every Lagrange geometry
+    cells = np.asarray(mesh.topology.original_cell_index[:ncells], dtype=np.int64)
+    layout = V.dofmap.dof_layout
+    dofs = V.dofmap.list[:ncells]
+    imap = V.dofmap.index_map
+    keys = np.full((imap.size_local + imap.num_ghosts, KEY_WIDTH), -1, dtype=np.int64)
+    for dim in range(tdim + 1):
+        for entity, vertices in enumerate(reference[dim]):
+            for j, position in enumerate(layout.entity_dofs(dim, entity)):
+                block = np.full((ncells, KEY_WIDTH), -1, dtype=np.int64)
+                block[:, 0] = dim
+                if dim == tdim:
+                    block[:, 1] = cells
+                else:
+                    block[:, 1 : 1 + len(vertices)] = np.sort(corners[:, vertices], axis=1)
+                block[:, -1] = j
+                keys[dofs[:, position]] = block  # every cell of a dof gives it the same key
+    return keys[: imap.size_local]
 
 
 def _original_cells(mesh) -> np.ndarray:
@@ -129,6 +218,9 @@ def write_checkpoint(
             values, indices = owned_values(f)
             arrays[name] = values
             arrays[f"{name}.global"] = indices
+            keys = dof_keys(f.function_space)
+            if keys is not None:
+                arrays[f"{name}.keys"] = keys
             mesh = f.function_space.mesh
         if mesh is not None:
             arrays["original_cells"] = _original_cells(mesh)
@@ -224,8 +316,107 @@ def read_meta(path: str | Path, comm) -> dict:
     return meta
 
 
+def _rank_files(folder: Path, comm) -> tuple[list[Path], str]:
+    """The complete set of rank files in ``folder`` (rank 0 looks, every rank gets the list), or an error."""
+    files, error = [], ""
+    if comm.rank == 0:
+        found = sorted(folder.glob("rank-*-of-*.npz"))
+        sizes = {p.stem.rsplit("-of-", 1)[-1] for p in found}
+        if len(sizes) != 1:
+            what = "rank files of several runs: " + ", ".join(sorted(sizes)) if found else "no rank files"
+            error = f"{folder}: {what}"
+        else:
+            size = int(sizes.pop())
+            files = [folder / _rank_file(r, size) for r in range(size)]
+            missing = [p.name for p in files if p not in found]
+            if missing:
+                error = f"{folder}: incomplete checkpoint (missing {', '.join(missing)})"
+    return comm.bcast((files, error), root=0)
+
+
+def _load(path: Path, names: list[str] | None = None) -> dict[str, np.ndarray]:
+    """The arrays ``names`` (those present; all for ``None``) of one rank file."""
+    with np.load(path) as data:
+        return {k: data[k] for k in (data.files if names is None else names) if k in data.files}
+
+
+def _by_global_index(folder: Path, functions: Mapping[str, fem.Function], stored: dict, comm) -> tuple[list, str]:
+    """The values of a file written on this distribution of the mesh, placed by global dof index."""
+    name = _rank_file(comm.rank, comm.size)
+    updates = []
+    for key, f in functions.items():
+        if key not in stored or f"{key}.global" not in stored:
+            return [], f"{folder}: no field {key!r} in {name} (stored: {', '.join(sorted(stored))})"
+        values, indices = stored[key], stored[f"{key}.global"]
+        _, current = owned_values(f)
+        if np.array_equal(indices, current):
+            updates.append((f, values))
+            continue
+        order, found = np.argsort(indices), np.argsort(current)
+        if indices.shape != current.shape or not np.array_equal(indices[order], current[found]):
+            return [], (
+                f"{folder}: field {key!r} on rank {comm.rank} has {indices.size} stored dofs for "
+                f"{current.size} owned ones, or other ones (another space or distribution)"
+            )
+        placed = np.empty_like(values)
+        placed[found] = values[order]
+        updates.append((f, placed))
+    return updates, ""
+
+
+def _by_key(folder: Path, files: list[Path], functions: Mapping[str, fem.Function], comm) -> tuple[list, str]:
+    """The values of a file written on another number of ranks, found by dof key (every rank reads every file)."""
+    names = [n for key in functions for n in (key, f"{key}.keys")]
+    try:
+        parts = [_load(p, names) for p in files]
+    except (OSError, ValueError) as exc:
+        return [], f"{folder}: the rank files cannot be read: {exc}"
+    updates = []
+    for key, f in functions.items():
+        if any(key not in part for part in parts):
+            return [], f"{folder}: no field {key!r} in the checkpoint"
+        if any(f"{key}.keys" not in part for part in parts):
+            return [], (
+                f"{folder}: field {key!r} was stored without partition-independent dof keys (its element); "
+                f"restart it on {len(files)} rank(s)"
+            )
+        V = f.function_space
+        current = dof_keys(V)
+        if current is None:
+            return [], (
+                f"{folder}: field {key!r}: this space has no partition-independent dof keys; "
+                f"restart on {len(files)} rank(s)"
+            )
+        keys = np.concatenate([part[f"{key}.keys"] for part in parts])
+        bs = V.dofmap.index_map_bs
+        values = np.concatenate([part[key] for part in parts])
+        if keys.shape[0] != V.dofmap.index_map.size_global or values.size != keys.shape[0] * bs:
+            return [], (
+                f"{folder}: field {key!r} has {keys.shape[0]} stored dof blocks of "
+                f"{values.size // max(1, keys.shape[0])}, this run {V.dofmap.index_map.size_global} of {bs} "
+                "(another space or mesh)"
+            )
+        _, group = np.unique(np.concatenate([keys, current]), axis=0, return_inverse=True)
+        group = group.reshape(-1)
+        row = np.full(group.max() + 1, -1, dtype=np.int64)
+        row[group[: keys.shape[0]]] = np.arange(keys.shape[0])
+        found = row[group[keys.shape[0] :]]
+        if np.any(found < 0):
+            return [], (
+                f"{folder}: field {key!r}: {int(np.count_nonzero(found < 0))} dofs of rank {comm.rank} are not in the "
+                "checkpoint (another mesh)"
+            )
+        updates.append((f, values.reshape(-1, bs)[found].reshape(-1)))
+    return updates, ""
+
+
 def read_functions(path: str | Path, functions: Mapping[str, fem.Function], comm) -> None:
     """Load the stored values into ``functions`` (collective; ghosts updated).
+
+    On the distribution of the mesh that wrote the checkpoint, each rank reads
+    its own file and the values are placed by global dof index; on any other
+    number of ranks (or distribution), by partition-independent dof key
+    (module docstring).
 
     Args:
         path: The checkpoint (:func:`resolve_checkpoint`).
@@ -233,53 +424,34 @@ def read_functions(path: str | Path, functions: Mapping[str, fem.Function], comm
         comm: Communicator of the functions' mesh.
 
     Raises:
-        CheckpointError: On every rank, if a rank's file is missing, was
-            written by another number of ranks or for another distribution
-            of the mesh, or lacks a function.
+        CheckpointError: On every rank, if a rank file is missing or
+            unreadable, a function is not stored, the stored space or mesh is
+            another, or the space has no keys and the distribution differs.
     """
     folder = resolve_checkpoint(path, comm)
-    error = ""
-    name = _rank_file(comm.rank, comm.size)
-    try:
-        with np.load(folder / name) as data:
-            stored = {k: data[k] for k in data.files}
-    except FileNotFoundError:
-        present = sorted(p.name for p in folder.glob("rank-*.npz"))
-        error = (
-            f"{folder}: no {name} (the checkpoint was written by another number of ranks: "
-            f"{', '.join(present) or 'no rank files'})"
-        )
-    except (OSError, ValueError) as exc:
-        error = f"{folder}/{name} cannot be read: {exc}"
-    if not error and functions:
-        mesh = next(iter(functions.values())).function_space.mesh
-        cells = stored.get("original_cells")
-        if cells is not None and not np.array_equal(cells, _original_cells(mesh)):
-            error = (
-                f"{folder}: rank {comm.rank} owns other cells than when the checkpoint was written "
-                "(another mesh, or the mesh distributed differently)"
-            )
-    updates = []
-    if not error:
-        for key, f in functions.items():
-            if key not in stored or f"{key}.global" not in stored:
-                error = f"{folder}: no field {key!r} in {name} (stored: {', '.join(sorted(stored))})"
-                break
-            values, indices = stored[key], stored[f"{key}.global"]
-            _, current = owned_values(f)
-            if np.array_equal(indices, current):
-                updates.append((f, values))
-                continue
-            order, found = np.argsort(indices), np.argsort(current)
-            if indices.shape != current.shape or not np.array_equal(indices[order], current[found]):
-                error = (
-                    f"{folder}: field {key!r} on rank {comm.rank} has {indices.size} stored dofs for "
-                    f"{current.size} owned ones, or other ones (another space or distribution)"
-                )
-                break
-            placed = np.empty_like(values)
-            placed[found] = values[order]
-            updates.append((f, placed))
+    files, error = _rank_files(folder, comm)
+    error = _collective(comm, error)
+    if error:
+        raise CheckpointError(error)
+    stored, same = {}, False
+    if len(files) == comm.size:
+        try:
+            stored = _load(folder / _rank_file(comm.rank, comm.size))
+        except (OSError, ValueError) as exc:
+            error = f"{folder}/{_rank_file(comm.rank, comm.size)} cannot be read: {exc}"
+        if not error and functions:
+            mesh = next(iter(functions.values())).function_space.mesh
+            cells = stored.get("original_cells")
+            same = cells is not None and np.array_equal(cells, _original_cells(mesh))
+    error = _collective(comm, error)
+    if error:
+        raise CheckpointError(error)
+    same = comm.allreduce(bool(same), op=MPI.LAND)
+    if same:
+        updates, error = _by_global_index(folder, functions, stored, comm)
+    else:
+        stored = {}
+        updates, error = _by_key(folder, files, functions, comm)
     error = _collective(comm, error)
     if error:
         raise CheckpointError(error)

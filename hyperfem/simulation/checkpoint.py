@@ -22,17 +22,17 @@ stopped:
 :class:`Checkpoint` is the output that writes them: every ``every`` steps, at
 the end, and after a failed step (after all cutbacks) of the last converged
 state. ``Simulation.run(restart=path)`` continues from one; the restarted run
-repeats the arithmetic of the uninterrupted one (same mesh, same number of
-ranks), so its rows and final state agree to round-off — in practice bit for
-bit.
+repeats the arithmetic of the uninterrupted one, so on the same number of
+ranks its rows and final state agree bit for bit; on another number of ranks
+(the state is then found by partition-independent dof keys,
+:mod:`hyperfem.io.checkpoint`) they agree as closely as two uninterrupted runs
+on different numbers of ranks do.
 
-Growth of the increment depends on how many easy steps came before
-(``grow_after``), which :func:`~hyperfem.solver.stepping.run_steps` starts
-counting afresh. A checkpoint due every ``every`` steps is therefore taken at
-the first step at which that count does not matter (:attr:`StepperState.settled`:
-the count is zero, or growth cannot change the increment), at most
-``grow_after - 1`` steps late; the checkpoint of a failure is taken where the
-run stopped and records ``"exact": false`` when it is not settled.
+The step-size control continues where it stopped: the nominal increment,
+the count of easy steps towards the next growth (``grow_after``) and the
+attempts spent are passed back to :func:`~hyperfem.solver.stepping.run_steps`,
+so a checkpoint can be taken after any accepted step, every ``every`` steps
+exactly.
 """
 
 from __future__ import annotations
@@ -102,18 +102,17 @@ class StepperState:
             dt, streak = min(dt * policy.growth, policy.max_step), 0
         return StepperState(dt, streak, self.attempts + record.rejected + 1)
 
-    def settled(self, policy: StepPolicy) -> bool:
-        """Whether a restart here steps exactly as the uninterrupted run (the streak cannot matter)."""
-        return self.streak == 0 or policy.growth == 1.0 or self.increment >= policy.max_step
-
     def resumed(self, policy: StepPolicy) -> StepPolicy:
-        """``policy`` continued from this state: its increment, effective bounds and the attempts left."""
+        """``policy`` continued from this state: its increment and effective bounds.
+
+        Pass :attr:`streak` and :attr:`attempts` to
+        :func:`~hyperfem.solver.stepping.run_steps` along with it.
+        """
         return dataclasses.replace(
             policy,
-            increment=self.increment,
+            increment=min(max(self.increment, policy.min_step), policy.max_step),
             min_increment=policy.min_step,
             max_increment=policy.max_step,
-            max_steps=max(1, policy.max_steps - self.attempts),
         )
 
 
@@ -168,7 +167,6 @@ def fingerprint(sim) -> dict:
 def _mismatch(stored: dict, current: dict) -> str:
     labels = {
         "stage": "stage",
-        "ranks": "number of MPI ranks",
         "cells": "mesh cells",
         "vertices": "mesh vertices",
         "geometry": "mesh coordinates",
@@ -201,7 +199,6 @@ def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2) -> Path:
         "fingerprint": fingerprint(sim),
         "time": sim.time,
         "completed": sim.completed,
-        "exact": sim.stepper.settled(sim.policy),
         "stepper": dataclasses.asdict(sim.stepper),
         "policy": {f.name: getattr(sim.policy, f.name) for f in dataclasses.fields(sim.policy)},
         "wall_time": sim.wall_time,
@@ -245,9 +242,7 @@ class Checkpoint(Output):
 
     Each is a folder ``step-NNNNNN`` under ``folder`` (:mod:`hyperfem.io.checkpoint`),
     ``folder/latest.json`` names the newest; continue with
-    ``Simulation.run(restart=folder)``. A checkpoint due every ``every``
-    steps waits for a step at which the step-size control is settled (module
-    docstring).
+    ``Simulation.run(restart=folder)``.
 
     Args:
         folder: Where to write.
@@ -269,6 +264,7 @@ class Checkpoint(Output):
         self.final = final
         self.last: int | None = None
         self.path: Path | None = None
+        self._completed = False
 
     def start(self, sim) -> None:
         """Check the folder (on every rank) before any solve."""
@@ -278,20 +274,20 @@ class Checkpoint(Output):
 
     def _save(self, sim) -> None:
         self.path = save_checkpoint(sim, self.folder, keep=self.keep)
-        self.last = sim.step
+        self.last, self._completed = sim.step, sim.completed
         sim.files["checkpoint"] = str(self.path)
 
     def write(self, sim, step: StepRecord | None) -> None:
-        """Save when ``every`` steps have passed since the last checkpoint and the control is settled."""
+        """Save when ``every`` steps have passed since the last checkpoint."""
         if step is None or self.every is None:
             return
-        if sim.step - self.last >= self.every and sim.stepper.settled(sim.policy):
+        if sim.step - self.last >= self.every:
             self._save(sim)
 
     def close(self, sim) -> None:
         """At the end, or after a failed step: the last converged state (not after other errors)."""
-        if sim.step == self.last and self.path is not None:
-            return
+        if sim.step == self.last and self.path is not None and self._completed == sim.completed:
+            return  # this state is checkpointed already, with the same outcome
         if (sim.completed and self.final) or (not sim.completed and sim.state_converged and sim.rows):
             self._save(sim)
 

@@ -24,8 +24,8 @@ completed steps and the checkpoint are.
 
 ``run(restart=path)`` continues from a checkpoint instead of the initial
 state (:mod:`hyperfem.simulation.checkpoint`): same problem, solver, outputs
-and policy as the run that wrote it (the end time may differ), same mesh and
-number of ranks. Steps are numbered on from the checkpoint, and the rows,
+and policy as the run that wrote it (the end time may differ) and the same
+mesh, on any number of ranks. Steps are numbered on from the checkpoint, and the rows,
 summary and files continue those of the first run.
 """
 
@@ -231,7 +231,8 @@ class Simulation:
             restart: A checkpoint to continue from: a
                 :class:`~hyperfem.simulation.checkpoint.Checkpoint` folder (its
                 latest) or one of its step folders. The run must be built as
-                the one that wrote it (same mesh, ranks, problem and case).
+                the one that wrote it (same mesh, problem and case; any
+                number of ranks).
 
         Raises:
             ConvergenceError: A step failed after all cutbacks (the summary,
@@ -271,7 +272,10 @@ class Simulation:
                 states = _matched_states(self.outputs, meta.get("outputs", []))
                 for output, state in zip(self.outputs, states, strict=True):
                     output.restart(self, state)
-            run_steps(self.stage, policy, lambda record: self._accept(record, None))
+            resume = {}
+            if meta is not None:  # the step-size control carries on its counts
+                resume = {"streak": min(self.stepper.streak, policy.grow_after - 1), "attempts": self.stepper.attempts}
+            run_steps(self.stage, policy, lambda record: self._accept(record, None), **resume)
             self.completed = True
         except ConvergenceError as exc:
             self.error = str(exc)

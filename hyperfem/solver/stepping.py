@@ -590,7 +590,12 @@ def _attempt(stage: Stage, policy: StepPolicy, t: float, sign: float, h: float, 
 
 
 def run_steps(
-    stage: Stage, policy: StepPolicy, on_step: Callable[[StepRecord], None] | None = None
+    stage: Stage,
+    policy: StepPolicy,
+    on_step: Callable[[StepRecord], None] | None = None,
+    *,
+    streak: int = 0,
+    attempts: int = 0,
 ) -> list[StepRecord]:
     """Step ``stage`` from its time to ``policy.end``.
 
@@ -599,6 +604,9 @@ def run_steps(
             last accepted state).
         policy: Increment control.
         on_step: Called after every accepted step (output, diagnostics).
+        streak: Easy steps already counted towards the next growth of the
+            increment (a run continued from a checkpoint carries on its count).
+        attempts: Attempts already spent of ``policy.max_steps`` (likewise).
 
     Returns:
         The accepted steps.
@@ -632,9 +640,11 @@ def run_steps(
 
         hits = sorted({h for h in policy.must_hit if end + eps < h < t0 - eps} | {end}, reverse=True)
 
+    if not (isinstance(streak, int) and 0 <= streak < policy.grow_after):
+        raise ParameterError(f"run_steps: streak must be an integer in [0, grow_after), got {streak!r}")
+    if not (isinstance(attempts, int) and attempts >= 0):
+        raise ParameterError(f"run_steps: attempts must be an integer >= 0, got {attempts!r}")
     dt = min(policy.increment, policy.max_step)
-    streak = 0
-    attempts = 0
     history: list[StepRecord] = []
     while remaining(t):
         start = _time.perf_counter()
