@@ -634,6 +634,16 @@ def test_gmsh_mesh_without_physical_groups(shared_dir):
         hf.read_mesh(path)
 
 
+def test_a_mesh_of_another_format_points_to_convert(shared_dir):
+    """A .vtu (or .inp, .mesh, ...) given where a gmsh file is read: the message says how to convert it."""
+    path = shared_dir / "beam.vtu"
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid"></VTKFile>\n')
+    MPI.COMM_WORLD.Barrier()
+    with pytest.raises(MeshError, match=r"not a gmsh \.msh file; convert it with `hyperfem convert beam\.vtu beam\.msh`"):
+        hf.read_mesh(path)
+
+
 def test_gmsh_mesh_with_untagged_cells(shared_dir):
     """DOLFINx's RuntimeError ('All cells are expected to be tagged once') becomes a MeshError naming the file."""
     path = shared_dir / "half_tagged.msh"

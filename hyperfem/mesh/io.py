@@ -71,17 +71,24 @@ def read_mesh(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | Non
     if not exists:
         raise MeshFileNotFoundError(f"mesh file not found: {path}")
 
+    # Other formats (.vtu, .inp, .mesh, ...) carry their groups in ways gmsh does not read: point to convert.
+    hint = "" if path.suffix.lower() == ".msh" else (
+        f" ({path.suffix or 'no suffix'}: not a gmsh .msh file; convert it with "
+        f"`hyperfem convert {path.name} {path.stem}.msh`)"
+    )
+
     def load(gmsh) -> int:
         gmsh.model.add("hyperfem")
         try:
             gmsh.merge(str(path))
         except Exception as exc:  # gmsh raises bare Exceptions
-            raise MeshError(f"could not read gmsh mesh: {str(exc).splitlines()[0] if str(exc) else exc!r}") from None
+            reason = str(exc).splitlines()[0] if str(exc) else repr(exc)
+            raise MeshError(f"could not read gmsh mesh: {reason}{hint}") from None
         if gmsh.model.getDimension() < 1:
-            raise MeshError("could not read gmsh mesh: no mesh in file")
+            raise MeshError(f"could not read gmsh mesh: no mesh in file{hint}")
         groups = gmsh.model.getPhysicalGroups()
         if not groups:
-            raise MeshError("the mesh has no physical groups; name its boundaries and regions in gmsh")
+            raise MeshError(f"the mesh has no physical groups; name its boundaries and regions in gmsh{hint}")
         tdim = max(dim for dim, _ in groups)
         needed = _geometric_dimension(gmsh, tdim)
         if gdim is None:
