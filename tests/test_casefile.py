@@ -22,28 +22,9 @@ from hyperfem.app.casefile import CaseFileError, apply_overrides, check_case, pa
 from hyperfem.app.python_equivalent import imports, must_hit_times
 from hyperfem.app.spec import LAME_LAWS
 
-ROOT = Path(__file__).resolve().parent.parent
+from case_texts import BASE, MESH, ROOT
+
 CASES = ROOT / "cases"
-MESH = ROOT / "meshes" / "beam_h2.msh"
-
-BASE = f"""
-[mesh]
-file = "{MESH}"
-
-[[material]]
-law = "neo_hookean"
-E = 1.0e6
-nu = 0.3
-
-[[bc]]
-type = "clamp"
-boundary = "clamped"
-
-[[load]]
-type = "dead_traction"
-boundary = "free_end"
-value = [0.0, -5.0e3, 0.0]
-"""
 
 
 @pytest.fixture

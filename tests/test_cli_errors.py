@@ -27,28 +27,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from case_texts import BASE, MESH, ROOT
+
 pytestmark = pytest.mark.serial
-
-ROOT = Path(__file__).resolve().parent.parent
-MESH = ROOT / "meshes" / "beam_h2.msh"
-
-BASE = f"""[mesh]
-file = "{MESH}"
-
-[[material]]
-law = "neo_hookean"
-E = 1.0e6
-nu = 0.3
-
-[[bc]]
-type = "clamp"
-boundary = "clamped"
-
-[[load]]
-type = "dead_traction"
-boundary = "free_end"
-value = [0.0, -5.0e3, 0.0]
-"""
 
 CONFLICT = '\n[[bc]]\ntype = "displacement"\nboundary = "clamped"\nvalue = [0.1, 0.0, 0.0]\n'
 

@@ -323,6 +323,8 @@ class RotationField:
                 (one material object per problem).
         """
         where = self.name
+        if isinstance(F, ufl.classes.Variable):  # ufl.variable(F), as a stress measure builds it: F itself
+            F = F.ufl_operands[0]
         shape = F.ufl_shape
         if len(shape) != 2 or shape[0] != shape[1] or shape[0] not in (2, 3):
             raise ParameterError(f"{where}: F must be a 2x2 or 3x3 tensor, got shape {shape}")

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
@@ -238,6 +238,7 @@ class CellFunctions:
         mesh = domain.mesh
         self._parts: list[tuple[fem.Function, list]] = []
         self.functions: list[fem.Function] = []
+        self._volumes: fem.Function | None = None
         for name, spec in fields.items():
             parts = dict(spec) if isinstance(spec, Mapping) else {None: spec}
             parts = {r: fem.Constant(mesh, float(e)) if isinstance(e, numbers.Real) else e for r, e in parts.items()}
@@ -245,22 +246,76 @@ class CellFunctions:
             V = fem.functionspace(mesh, ("DG", degree, shape) if shape else ("DG", degree))
             f = fem.Function(V, name=name)
             points = V.element.interpolation_points
-            compiled = [
-                (None if region is None else domain.cells(region), fem.Expression(e, points))
-                for region, e in parts.items()
-            ]
+            compiled = []
+            for region, e in parts.items():
+                cells = None if region is None else domain.cells(region)
+                rule = _quadrature_degree(e)
+                if rule is None:
+                    compiled.append((cells, fem.Expression(e, points)))
+                elif degree == 0:
+                    # values kept at quadrature points (a material's rotation field) have no midpoint value:
+                    # the cell average on their rule instead
+                    w = ufl.TestFunction(V)
+                    dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": rule})
+                    compiled.append((cells, fem.form(ufl.inner(e, w) * dx)))
+                else:
+                    raise ParameterError(
+                        f"CellFields: {name} depends on values kept at quadrature points; it has cell values "
+                        f"(degree 0), not degree {degree}"
+                    )
             self._parts.append((f, compiled))
             self.functions.append(f)
 
+    def _cell_volumes(self, mesh) -> fem.Function:
+        if self._volumes is None:
+            V0 = fem.functionspace(mesh, ("DG", 0))
+            self._volumes = fem.Function(V0)
+            b = fem.assemble_vector(fem.form(ufl.TestFunction(V0) * ufl.dx(domain=mesh)))
+            b.scatter_reverse(la.InsertMode.add)
+            b.scatter_forward()
+            self._volumes.x.array[:] = b.array
+        return self._volumes
+
+    def _average(self, f: fem.Function, form, cells) -> None:
+        """``f`` on ``cells`` (all for ``None``) := the cell averages, ∫ e w dx / |K|."""
+        mesh = f.function_space.mesh
+        b = fem.assemble_vector(form)
+        b.scatter_reverse(la.InsertMode.add)
+        b.scatter_forward()
+        bs = f.function_space.dofmap.bs
+        volumes = self._cell_volumes(mesh)
+        tdim = mesh.topology.dim
+        if cells is None:
+            cmap = mesh.topology.index_map(tdim)
+            cells = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
+        dofs = f.function_space.dofmap.list[cells, 0]
+        vdofs = volumes.function_space.dofmap.list[cells, 0]
+        values = f.x.array.reshape(-1, bs)
+        values[dofs] = b.array.reshape(-1, bs)[dofs] / volumes.x.array[vdofs, None]
+
     def refresh(self) -> None:
-        """Interpolate every expression at the current state."""
+        """Interpolate every expression at the current state (cell averages where the expression needs them)."""
         for f, compiled in self._parts:
             for cells, expr in compiled:
-                if cells is None:
+                if isinstance(expr, fem.Form):
+                    self._average(f, expr, cells)
+                elif cells is None:
                     f.interpolate(expr)
                 else:
                     f.interpolate(expr, cells0=cells)
             f.x.scatter_forward()
+
+
+def _quadrature_degree(e) -> int | None:
+    """The rule of the quadrature-space coefficients in ``e`` (their highest degree), or ``None`` if it has none."""
+    from ufl.algorithms import extract_coefficients
+
+    degrees = [
+        int(c.ufl_function_space().ufl_element().degree)
+        for c in extract_coefficients(e)
+        if getattr(c.ufl_function_space().ufl_element(), "is_quadrature", False)
+    ]
+    return max(degrees) if degrees else None
 
 
 class CellFields(VTX):
