@@ -16,6 +16,21 @@ Where the groups come from, in this order:
    exterior faces whose three corners are all in the set become a boundary);
 3. else the whole volume is region ``domain`` and its exterior faces boundary ``boundary``.
 
+Abaqus ``*SURFACE`` definitions (which meshio drops) are read by
+:mod:`hyperfem.app.abaqus` and become boundaries of their name (6-node
+triangles for C3D10): ``TYPE=ELEMENT`` by element label or element set and
+face ``S1`` … ``S4`` (without a face: the element's exterior faces),
+``TYPE=NODE`` by nodes or node sets. In a file with surfaces the sets are read
+by that module too (element labels matched to meshio's cells), an element set
+that defines a surface (or is marked ``INTERNAL``) is a region only where it
+overlaps no other region (regions first, then such sets from the largest
+down), and a surface face inside the mesh, an unknown element, set or face
+identifier, and ``*INCLUDE`` are refused (``FILE:LINE: ...``).
+
+Each face has one boundary (hyperfem tags a facet once): surfaces that share
+faces are refused; a node-set boundary that shares faces with another boundary
+is dropped with a warning (smaller node sets kept first).
+
 Tetrahedra in no region go to region ``unassigned`` (with a warning). Tags are
 renumbered 1, 2, ... per dimension (gmsh physical tags must be positive).
 Refused with a specific message: a file without tetrahedra (a surface mesh),
@@ -33,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hyperfem.app.abaqus import faces, has_surfaces, read_inp
 from hyperfem.app.meshcheck import orientation
 from hyperfem.errors import MeshError, MeshFileNotFoundError
 
@@ -92,6 +108,8 @@ def _read(path: Path):
         return meshio.read(path)
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - meshio raises many types, and may call sys.exit
         reason = (str(exc).splitlines() or [type(exc).__name__])[0] if str(exc) else type(exc).__name__
+        if reason == "'tetra4'":  # meshio 5.3 maps Abaqus C3D4H to a cell type it does not know
+            reason = "C3D4H elements are not supported (write them as C3D4, the same nodes, to convert)"
         raise MeshError(f"{path}: meshio cannot read it: {reason}") from None
 
 
@@ -159,12 +177,12 @@ def _names_from_field_data(mesh) -> dict[tuple[int, int], str]:
     return out
 
 
-def _exterior_facets(tets: np.ndarray) -> np.ndarray:
-    """Faces (vertex triples) that belong to one tetrahedron only."""
-    faces = np.concatenate([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]], tets[:, [1, 2, 3]]])
-    keys = np.sort(faces, axis=1)
+def _exterior_facets(cells: np.ndarray) -> np.ndarray:
+    """Faces that belong to one tetrahedron only: rows of 3 (tetra) or 6 (tetra10: with mid-edge) nodes."""
+    every = faces(cells).reshape(-1, 3 if cells.shape[1] == 4 else 6)
+    keys = np.sort(every[:, :3], axis=1)
     _, index, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
-    return faces[index[counts == 1]]
+    return every[index[counts == 1]]
 
 
 def _groups_from_array(mesh, name, volume, facets, tet, path):
@@ -188,7 +206,12 @@ def _groups_from_array(mesh, name, volume, facets, tet, path):
     return regions, unassigned, boundaries
 
 
-def _groups_from_sets(mesh, volume, facets, cells, path):
+def _groups_from_sets(mesh, volume, facets, cells, path, helpers=frozenset()):
+    """Regions, unassigned cells, boundaries, the ``helpers`` left out of the regions, the node-set boundaries.
+
+    ``helpers`` (sets that define Abaqus surfaces) are regions only where they overlap no other region: the
+    other sets first, then the helpers from the largest down (instead of the overlap error).
+    """
     offsets = np.cumsum([0] + [len(mesh.cells[i].data) for i in volume])
     regions: dict[str, np.ndarray] = {}
     boundaries: dict[str, np.ndarray] = {}
@@ -207,6 +230,14 @@ def _groups_from_sets(mesh, volume, facets, cells, path):
             regions[name] = mask
         if chosen:
             boundaries[name] = np.concatenate(chosen)
+    kept = [name for name in regions if name not in helpers]
+    dropped = []
+    for name in sorted((h for h in regions if h in helpers), key=lambda h: -int(regions[h].sum())):
+        if any(np.any(regions[name] & regions[k]) for k in kept):
+            dropped.append(name)
+        else:
+            kept.append(name)
+    regions = {name: mask for name, mask in regions.items() if name not in dropped}
     names = list(regions)
     for a in range(len(names)):
         for b in range(a):
@@ -215,18 +246,60 @@ def _groups_from_sets(mesh, volume, facets, cells, path):
                     f"{path}: cell sets {names[b]!r} and {names[a]!r} overlap; each tetrahedron needs one region "
                     "(remove one of the sets, or pass --tags with a cell-data array)"
                 )
+    from_nodes = []
     if mesh.point_sets:
-        exterior = _exterior_facets(cells[:, :4])
+        exterior = _exterior_facets(cells)
         for name, points in mesh.point_sets.items():
             inside = np.zeros(len(mesh.points), dtype=bool)
             inside[np.asarray(points, dtype=int)] = True
-            chosen = exterior[inside[exterior].all(axis=1)]
+            chosen = exterior[inside[exterior[:, :3]].all(axis=1)]
             if len(chosen) and name not in boundaries:
                 boundaries[name] = chosen
+                from_nodes.append(name)
     covered = np.zeros(len(cells), dtype=bool)
     for mask in regions.values():
         covered |= mask
-    return regions, ~covered, boundaries
+    return regions, ~covered, boundaries, dropped, from_nodes
+
+
+def _face_keys(facets: np.ndarray) -> np.ndarray:
+    """One comparable value per facet: its sorted corners."""
+    keys = np.ascontiguousarray(np.sort(np.asarray(facets, dtype=np.int64)[:, :3], axis=1))
+    return keys.view(np.dtype((np.void, 24))).reshape(-1)
+
+
+def _one_boundary_per_face(boundaries, from_nodes, strict, path, cautions, notes, helpers=frozenset()):
+    """Give every face one boundary: hyperfem tags each facet once.
+
+    Boundaries from node sets that share faces with another boundary are dropped (with a warning, a note for
+    ``helpers``: node sets that define surfaces; the smaller sets kept first); with ``strict`` (Abaqus surfaces
+    present) the other boundaries sharing faces are refused.
+    """
+    if not strict and not from_nodes:
+        return boundaries
+    keys = {name: _face_keys(f) for name, f in boundaries.items()}
+    kept = [name for name in boundaries if name not in from_nodes]
+    if strict:
+        for a in range(len(kept)):
+            for b in range(a):
+                shared = len(np.intersect1d(keys[kept[a]], keys[kept[b]]))
+                if shared:
+                    raise MeshError(
+                        f"{path}: boundaries {kept[b]!r} and {kept[a]!r} share {shared} faces; hyperfem gives each "
+                        "face one boundary: remove or split one of the surfaces"
+                    )
+    for name in sorted(from_nodes, key=lambda n: len(keys[n])):
+        other = next((k for k in kept if len(np.intersect1d(keys[name], keys[k]))), None)
+        if other is None:
+            kept.append(name)
+        elif name in helpers:
+            notes.append(f"node set {name!r} defines a surface: not a boundary of its own")
+        else:
+            cautions.append(
+                f"node set {name!r} is no boundary: its faces overlap boundary {other!r} (hyperfem gives each face "
+                "one boundary)"
+            )
+    return {name: f for name, f in boundaries.items() if name in kept}
 
 
 def convert(source: str | Path, target: str | Path, *, reorient: bool = False, tags: str | None = None) -> Conversion:
@@ -250,7 +323,11 @@ def convert(source: str | Path, target: str | Path, *, reorient: bool = False, t
         raise MeshFileNotFoundError(f"mesh file not found: {source}")
     if target.suffix != ".msh":
         raise MeshError(f"{target}: convert writes gmsh files: the output must end in .msh")
+    abaqus = read_inp(source) if source.suffix.lower() == ".inp" and has_surfaces(source) else None
     mesh = _read(source)
+    if abaqus is not None:
+        abaqus.match(mesh)
+        mesh.cell_sets, mesh.point_sets = abaqus.cell_sets(), abaqus.point_sets()
     tet, volume, facets, cautions = _blocks(mesh, source)
     notes: list[str] = []
     cells = np.concatenate([np.asarray(mesh.cells[i].data, dtype=np.int64) for i in volume])
@@ -259,16 +336,35 @@ def convert(source: str | Path, target: str | Path, *, reorient: bool = False, t
         raise MeshError(f"{source}: planar points (2 coordinates) cannot carry tetrahedra")
 
     name = _tag_array(mesh, tags, source)
+    from_nodes: list[str] = []
     if name is not None:
         regions, unassigned, boundaries = _groups_from_array(mesh, name, volume, facets, tet, source)
         notes.append(f"groups from the cell-data array {name!r}")
     elif any(not k.startswith("gmsh:") for k in mesh.cell_sets) or mesh.point_sets:
-        regions, unassigned, boundaries = _groups_from_sets(mesh, volume, facets, cells, source)
+        helpers = abaqus.surface_sets() if abaqus is not None else set()
+        regions, unassigned, boundaries, dropped, from_nodes = _groups_from_sets(
+            mesh, volume, facets, cells, source, helpers
+        )
         notes.append("groups from the cell and point sets")
+        if dropped:
+            notes.append(f"element sets only used to define surfaces (not regions): {', '.join(dropped)}")
     else:
         regions, unassigned = {"domain": np.ones(len(cells), dtype=bool)}, np.zeros(len(cells), dtype=bool)
-        boundaries = {"boundary": _exterior_facets(cells[:, :4])}
+        boundaries = {"boundary": _exterior_facets(cells)}
         notes.append("no tags or sets: one region 'domain', the exterior faces are boundary 'boundary'")
+    if abaqus is not None:
+        surfaces = abaqus.surfaces(cells, volume, [block.type for block in mesh.cells])
+        for surface in surfaces:
+            if surface in boundaries:
+                cautions.append(f"boundary {surface!r} is the *SURFACE of that name (the set of that name is ignored)")
+                if surface in from_nodes:
+                    from_nodes.remove(surface)
+        boundaries.update(surfaces)
+        notes.append(f"boundaries from *SURFACE: {', '.join(f'{k} ({len(v)})' for k, v in surfaces.items())}")
+    boundaries = _one_boundary_per_face(
+        boundaries, from_nodes, abaqus is not None, source, cautions, notes,
+        abaqus.surface_node_sets() if abaqus is not None else set(),
+    )
     if unassigned.any():
         cautions.append(f"{int(unassigned.sum())} of {len(cells)} tetrahedra belong to no region: region 'unassigned'")
         regions["unassigned"] = unassigned
