@@ -278,3 +278,19 @@ def test_quadratic_mesh_without_sets(tmp_path):
     assert report.regions == {"domain": 5} and report.boundaries == {"boundary": 12}
     assert _facets(target)["boundary"].shape == (12, 6)
     assert _measure(hf.read_mesh(target, MPI.COMM_SELF), "boundary") == pytest.approx(6.0, rel=1e-12)
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("surfaces", [SURFACES, ""], ids=["with-surfaces", "sets-only"])
+def test_hybrid_tetrahedra_are_read_as_plain_ones(surfaces, tmp_path):
+    """C3D4H (Abaqus's u-p tetrahedron, common for rubber and tissue): the same nodes as C3D4, with a note."""
+    source = tmp_path / "hybrid.inp"
+    source.write_text(_inp(surfaces).replace("type=C3D4,", "type=C3D4H,").replace("TYPE=C3D4 ,", "TYPE=C3D4H ,"))
+    assert source.read_text().count("C3D4H") == 2
+    result = convert(source, tmp_path / "hybrid.msh")
+    assert result.cells == len(TETS) and result.cell_type == "tetra"
+    assert any("C3D4H" in note and "mixed" in note for note in result.notes)
+    plain = tmp_path / "plain.inp"
+    plain.write_text(_inp(surfaces))
+    reference = convert(plain, tmp_path / "plain.msh")
+    assert result.regions == reference.regions and result.boundaries == reference.boundaries

@@ -42,6 +42,8 @@ degenerate tetrahedra, and inverted (negatively oriented) tetrahedra unless
 
 from __future__ import annotations
 
+import re
+import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -101,15 +103,30 @@ class Conversion:
         )
 
 
-def _read(path: Path):
+_HYBRID_TET = re.compile(r"(?im)^(\s*\*\s*ELEMENT\b[^\n]*?\bTYPE\s*=\s*)C3D4H\b")
+
+
+def _read(path: Path, notes: list[str] | None = None):
+    """The meshio mesh of ``path``; Abaqus C3D4H (hybrid) tetrahedra are read as C3D4, with a note."""
     import meshio
 
     try:
+        if path.suffix.lower() == ".inp":
+            text = path.read_text(errors="replace")
+            if _HYBRID_TET.search(text):
+                # meshio 5.3 maps C3D4H to a cell type it does not know. The nodes are those of C3D4; "hybrid"
+                # is Abaqus's u-p formulation, a solver choice (formulation = "mixed" here), not geometry.
+                with tempfile.TemporaryDirectory() as tmp:
+                    plain = Path(tmp) / path.name
+                    plain.write_text(_HYBRID_TET.sub(r"\g<1>C3D4", text))
+                    mesh = meshio.read(plain)
+                if notes is not None:
+                    notes.append('C3D4H (hybrid) tetrahedra read as C3D4; use formulation = "mixed" for near '
+                                 "incompressibility")
+                return mesh
         return meshio.read(path)
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - meshio raises many types, and may call sys.exit
         reason = (str(exc).splitlines() or [type(exc).__name__])[0] if str(exc) else type(exc).__name__
-        if reason == "'tetra4'":  # meshio 5.3 maps Abaqus C3D4H to a cell type it does not know
-            reason = "C3D4H elements are not supported (write them as C3D4, the same nodes, to convert)"
         raise MeshError(f"{path}: meshio cannot read it: {reason}") from None
 
 
@@ -324,12 +341,12 @@ def convert(source: str | Path, target: str | Path, *, reorient: bool = False, t
     if target.suffix != ".msh":
         raise MeshError(f"{target}: convert writes gmsh files: the output must end in .msh")
     abaqus = read_inp(source) if source.suffix.lower() == ".inp" and has_surfaces(source) else None
-    mesh = _read(source)
+    notes: list[str] = []
+    mesh = _read(source, notes)
     if abaqus is not None:
         abaqus.match(mesh)
         mesh.cell_sets, mesh.point_sets = abaqus.cell_sets(), abaqus.point_sets()
     tet, volume, facets, cautions = _blocks(mesh, source)
-    notes: list[str] = []
     cells = np.concatenate([np.asarray(mesh.cells[i].data, dtype=np.int64) for i in volume])
     points = np.asarray(mesh.points, dtype=float)
     if points.shape[1] == 2:
