@@ -17,7 +17,7 @@ PYTEST_ARGS ?= -q -p no:cacheprovider
 export OMP_NUM_THREADS ?= 1
 export OPENBLAS_NUM_THREADS ?= 1
 
-.PHONY: all bootstrap demo demos test test-serial test-mpi meshes benchmark clean
+.PHONY: all bootstrap demo demos test test-serial test-mpi meshes benchmark render clean
 
 all: test
 
@@ -89,6 +89,11 @@ test-mpi: bootstrap
 
 meshes: bootstrap
 	$(PY) -c "from hyperfem.mesh import write_beam_mesh as w; w('meshes/beam_h2.msh', h=2.0); w('meshes/beam_h1.msh', h=1.0)"
+
+# Optional: pyvista (offscreen VTK) for the PNG renders, and the README pictures redrawn.
+render: bootstrap
+	$(PY) -c "import pyvista" 2>/dev/null || $(PY) -m pip install -q pyvista
+	$(PY) docs/render_images.py
 
 benchmark: bootstrap
 	$(PY) benchmarks/energy_line_search.py

@@ -65,6 +65,8 @@ class named). Examples: ``cases/*.toml``.
     format = "vtx"                  # | "xdmf"; times = [...] or every = dt: frames only then
     checkpoint_every = 10           # Checkpoint (and at the end, and after a failed step); checkpoint = false
     # csv, summary, convergence, progress = true | false (CSVLog, JSONSummary, ConvergenceLog, Progress)
+    # render = true | {scalars = "von_mises", every = 5, view = [1, 0.7, 1.6], undeformed = "outline",
+    #   window_size = [800, 500], ...}: Render, a PNG of the deformed body (pip install 'hyperfem[render]')
 
 Validation happens before anything is computed (:func:`load_case`): TOML
 syntax errors with line and column, unknown keys with a did-you-mean, wrong

@@ -514,10 +514,33 @@ def _outputs(case: Case, materials: _Materials) -> Statement:
     if o.progress:
         items.append(("output.progress", "Progress(progress_line)"))
         imports.append("from hyperfem.app.report import progress_line")
+    if o.render is not None:
+        items.append(("output.render", _render(case, materials, o.render)))
     classes = sorted({expr.split("(")[0] for _, expr in items})
     if classes:
         imports.append(SIMULATION.format(", ".join(classes)))
     return Statement("output", "outputs", items=tuple(items), imports=tuple(imports))
+
+
+def _render(case: Case, materials: _Materials, render) -> str:
+    """``Render(out / 'name.png', scalars=..., <what the field needs>, <the other options as given>)``."""
+    options = dict(render.options)
+    kw = {}
+    if "scalars" in options:
+        kw["scalars"] = literal(options.pop("scalars"))
+    scalars = render.scalars
+    if scalars == "von_mises":
+        kw["materials"] = materials.name
+    elif scalars == "fibre_stretch":
+        kw["fibres"] = "fibres"
+    elif scalars == "activation":
+        active = [(m, a) for m, a in zip(case.materials, materials.activations, strict=True) if a is not None]
+        if len(active) == 1 and active[0][0].region is None:
+            kw["activation"] = active[0][1]
+        else:
+            kw["activation"] = "{" + ", ".join(f"{literal(m.region)}: {a}" for m, a in active) + "}"
+    kw.update(_kwargs(options))
+    return call("Render", f"out / {literal(case.name + '.png')}", **kw)
 
 
 def _simulation(case: Case) -> Statement:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from hyperfem.app.schema import CaseFileError, Key, check_table, check_value, describe, join, suggestion
@@ -37,13 +38,17 @@ from hyperfem.app.spec import (
     OutputSpec,
     ProblemSpec,
     Profile,
+    RenderSpec,
     SolverSpec,
     SteppingSpec,
 )
+from hyperfem.errors import ParameterError
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
 from hyperfem.simulation.fields import FIELDS, FORMATS
+from hyperfem.simulation.render import RENDER_SCALARS, UNDEFORMED, check_render_options
 
 __all__ = [
+    "RENDER",
     "TOP",
     "check_bcs",
     "check_fibres",
@@ -244,7 +249,26 @@ OUTPUT = {
     "checkpoint_every": Key("integer", minimum=1),
     "checkpoint_keep": Key("integer", minimum=1),
     "progress": Key("boolean"),
+    "render": Key("any", help="true, or a table of Render options (a PNG of the deformed body; needs pyvista)"),
 }
+
+RENDER = {
+    "scalars": Key("string", choices=RENDER_SCALARS),
+    "every": Key("integer", minimum=1, help="also draw every k steps (<name>-000010.png)"),
+    "final": Key("boolean"),
+    "scale": Key("number"),
+    "view": Key("vector", length=3),
+    "up": Key("vector", length=3),
+    "undeformed": Key("string", choices=(*UNDEFORMED, "none")),
+    "window_size": Key("any"),
+    "title": Key("any"),
+    "scalar_bar_title": Key("string"),
+    "cmap": Key("string"),
+    "clim": Key("vector", length=2),
+    "zoom": Key("number", above=0.0),
+    "parallel": Key("boolean"),
+}
+"""Keys of ``[output] render = {...}``: the keyword arguments of :class:`~hyperfem.simulation.render.Render`."""
 
 
 # -- sections -----------------------------------------------------------------------------------
@@ -636,6 +660,7 @@ def check_output(
     else:
         every = values.get("checkpoint_every", 10)
     folder = Path(directory) if directory is not None else Path(values.get("directory", Path("output") / name))
+    render = _render(values.get("render", False), fibres, materials)
     return OutputSpec(
         directory=folder,
         fields=fields,
@@ -649,7 +674,47 @@ def check_output(
         checkpoint_every=every,
         checkpoint_keep=values.get("checkpoint_keep"),
         progress=values.get("progress", True),
+        render=render,
     )
+
+
+def _render(raw: object, fibres: FibreSpec | None, materials: Sequence[MaterialSpec]) -> RenderSpec | None:
+    """``output.render``: ``true`` (defaults), ``false`` (none) or a table of :data:`RENDER` keys."""
+    where = "output.render"
+    if raw is False:
+        return None
+    if raw is True:
+        return RenderSpec()
+    if not isinstance(raw, Mapping):
+        raise CaseFileError(f"{where}: expected true, false or a table of render options, got {describe(raw)}")
+    values = check_table(raw, RENDER, where, what="output.render")
+    if "window_size" in values:
+        size = values["window_size"]
+        if not (
+            isinstance(size, (list, tuple))
+            and len(size) == 2
+            and all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in size)
+        ):
+            raise CaseFileError(f"{where}.window_size: expected two positive integers [width, height], got "
+                                f"{describe(size)}")
+        values["window_size"] = tuple(size)
+    if "title" in values and not isinstance(values["title"], (bool, str)):
+        raise CaseFileError(f"{where}.title: expected a string or true/false, got {describe(values['title'])}")
+    if values.get("undeformed") == "none":
+        values["undeformed"] = None
+    if "clim" in values and not values["clim"][0] < values["clim"][1]:
+        raise CaseFileError(f"{where}.clim: needs low < high, got {list(values['clim'])}")
+    scalars = values.get("scalars", "displacement")
+    if scalars == "fibre_stretch" and fibres is None:
+        raise CaseFileError(f"{where}.scalars: fibre_stretch needs a [fibres] table")
+    if scalars == "activation" and not any(isinstance(m.activation, Profile) for m in materials):
+        raise CaseFileError(f"{where}.scalars: activation needs a material with a time-dependent activation")
+    try:
+        check_render_options(**{k: values[k] for k in ("window_size", "undeformed", "view", "up", "scale")
+                                if k in values})
+    except ParameterError as exc:
+        raise CaseFileError(f"{where}: {exc}") from exc
+    return RenderSpec(tuple((k, values[k]) for k in RENDER if k in values))
 
 
 def check_loads(entries: Sequence[Mapping]) -> tuple[LoadSpec, ...]:

@@ -22,6 +22,7 @@ __all__ = [
     "MaterialSpec",
     "MeshSpec",
     "OutputSpec",
+    "RenderSpec",
     "ProblemSpec",
     "Profile",
     "SolverSpec",
@@ -238,6 +239,23 @@ class SolverSpec:
 
 
 @dataclass(frozen=True)
+class RenderSpec:
+    """``[output] render``: a :class:`~hyperfem.simulation.render.Render` of the final state (and every k steps).
+
+    Attributes:
+        options: The keyword arguments of ``Render`` that the case gives, in the order of :data:`hyperfem.app.sections.RENDER`
+            (``undeformed = "none"`` as ``None``).
+    """
+
+    options: tuple[tuple[str, object], ...] = ()
+
+    @property
+    def scalars(self) -> str:
+        """What colours the surface (default ``"displacement"``)."""
+        return dict(self.options).get("scalars", "displacement")
+
+
+@dataclass(frozen=True)
 class OutputSpec:
     """``[output]``.
 
@@ -255,6 +273,7 @@ class OutputSpec:
         checkpoint_every: Steps between checkpoints (``None``: no checkpoints).
         checkpoint_keep: Checkpoints kept.
         progress: Print a line per step (rank 0).
+        render: Picture(s) of the deformed body (:class:`~hyperfem.simulation.render.Render`), or ``None``.
     """
 
     directory: Path
@@ -269,6 +288,7 @@ class OutputSpec:
     checkpoint_every: int | None = 10
     checkpoint_keep: int | None = None
     progress: bool = True
+    render: RenderSpec | None = None
 
 
 @dataclass(frozen=True)

@@ -52,6 +52,7 @@ from hyperfem.simulation.outputs import (
 )
 from hyperfem.simulation.reactions import DirichletReactions, ReactionResult, Reactions
 from hyperfem.simulation.fields import FieldOutput, cell_field_expressions, von_mises
+from hyperfem.simulation.render import Render, Surface, boundary_surface, render_png
 from hyperfem.simulation.checkpoint import Checkpoint, CheckpointError, StepperState
 from hyperfem.simulation.runner import Fields, Simulation
 
@@ -79,12 +80,16 @@ __all__ = [
     "ReactionResult",
     "Reactions",
     "Recorder",
+    "Render",
     "Simulation",
     "StepperState",
+    "Surface",
+    "boundary_surface",
     "cauchy_stress",
     "cell_field_expressions",
     "continuation_path",
     "format_summary",
     "read_convergence",
+    "render_png",
     "von_mises",
 ]
