@@ -23,8 +23,8 @@ from hyperfem.app.schema import CaseFileError
 from hyperfem.errors import OutputError, ParameterError
 from hyperfem.simulation.render import DISPLACEMENT, Render, Surface, boundary_surface, render_png
 
-ROOT = Path(__file__).resolve().parent.parent
-BEAM = ROOT / "meshes" / "beam_h2.msh"
+from case_texts import BASE
+
 CELLS = {"tetrahedron": mesh.CellType.tetrahedron, "hexahedron": mesh.CellType.hexahedron}
 
 
@@ -228,21 +228,7 @@ def test_render_png_writes_the_picture(comm, tmp_path):
         render_png(u, blocker / "x.png")
 
 
-CASE = f"""
-name = "rendered"
-[mesh]
-file = "{BEAM}"
-[[material]]
-law = "neo_hookean"
-E = 1.0e6
-nu = 0.3
-[[bc]]
-type = "clamp"
-boundary = "clamped"
-[[load]]
-type = "dead_traction"
-boundary = "free_end"
-value = [0.0, -5.0e3, 0.0]
+CASE = 'name = "rendered"\n' + BASE + """
 [stepping]
 increment = 0.5
 [output]
