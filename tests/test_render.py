@@ -290,3 +290,29 @@ def test_case_file_render_errors(comm, tmp_path, render, message):
     with pytest.raises(CaseFileError) as info:
         load_case(source)
     assert message in str(info.value)
+
+
+def test_render_command_draws_a_checkpoint(comm, tmp_path, capsys):
+    """``hyperfem render CASE --checkpoint OUT``: the state of the run's last checkpoint, drawn as during the run.
+
+    Without a checkpoint it is one CheckpointError (no pyvista needed to get there).
+    """
+    from hyperfem.app.main import dispatch
+    from hyperfem.io import CheckpointError
+
+    folder = _shared_path(tmp_path)
+    source = folder / "case.toml"
+    if comm.rank == 0:
+        source.write_text(CASE.replace(RENDER_LINE, "").replace("checkpoint = false", "checkpoint_every = 1"))
+    comm.Barrier()
+    with pytest.raises(CheckpointError, match="no checkpoint there"):
+        dispatch(["render", str(source), "--checkpoint", str(folder / "nothing")])
+    pytest.importorskip("pyvista")
+    dispatch(["run", str(source), "--output", str(folder / "out")])
+    picture = folder / "picture.png"
+    dispatch(["render", str(source), "--checkpoint", str(folder / "out"), "--scalars", "J", "-o", str(picture),
+              "--set", "output.render={window_size = [160, 100]}"])
+    if comm.rank == 0:
+        assert "rendered at t = 1, step 2 (completed run" in capsys.readouterr().out
+        kind, size, pixels = _png(picture)
+        assert kind == "PNG" and size == (160, 100) and np.any(pixels < 200)

@@ -10,6 +10,7 @@
     hyperfem mesh fusiform [--size H] [--order N] [--belly-length L ...] [-o OUT.msh]
     hyperfem mesh-quality MESH.msh [--png OUT.png] [--threshold Q]
     hyperfem plot OUTPUT_FOLDER
+    hyperfem render CASE.toml [--checkpoint PATH] [-o OUT.png] [--scalars NAME] [--set KEY=VALUE ...]
     hyperfem convert IN OUT.msh [--reorient] [--tags NAME]
     hyperfem --version
 
@@ -48,6 +49,7 @@ examples:
   hyperfem mesh beam --size 2 -o beam_h2.msh
   hyperfem mesh-quality beam_h2.msh --png quality.png
   hyperfem convert part.inp part.msh
+  hyperfem render cases/bend.toml --scalars von_mises -o bend.png
 """
 
 
@@ -163,6 +165,32 @@ def make_parser() -> ArgumentParser:
         "the time series of the test point, energies and volume, from the files a run left in its output folder.",
     )
     pl.add_argument("folder", type=Path, help="the output folder of a run")
+
+    rd = sub.add_parser(
+        "render",
+        help="a PNG of the deformed body from a run's checkpoint (needs pyvista)",
+        description="Build the case, load the state of one of its checkpoints (the last one by default: the end "
+        "of a completed run) and draw the deformed body offscreen to PNG, as [output] render does during a run. "
+        "The checkpoint may come from a run on any number of ranks. Needs the optional extra: "
+        "pip install 'hyperfem[render]'.",
+    )
+    rd.add_argument("case", type=Path, help="the .toml case file of the run")
+    rd.add_argument(
+        "--checkpoint",
+        type=Path,
+        default=None,
+        help="the run's output folder, its checkpoint folder or one step folder (default: the newest checkpoint "
+        "in the case's output folder)",
+    )
+    rd.add_argument("--output", "-o", type=Path, default=None, help="the PNG (default OUTPUT/NAME.png)")
+    rd.add_argument(
+        "--scalars",
+        default=None,
+        help="what colours the surface: displacement, von_mises, J, fibre_stretch, activation "
+        "(default: [output] render's, else displacement)",
+    )
+    rd.add_argument("--scale", type=positive_float, default=None, help="displacement magnification")
+    rd.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help="as for run")
 
     q = sub.add_parser(
         "mesh-quality",
@@ -361,6 +389,41 @@ def _quality(args) -> None:
         _say(f"wrote {args.png}")
 
 
+def _render_picture(args) -> None:
+    import dataclasses
+
+    from hyperfem.app.build import build
+    from hyperfem.app.casefile import load_case
+    from hyperfem.app.python_equivalent import checkpoint_folder
+    from hyperfem.app.spec import RenderSpec
+    from hyperfem.simulation.checkpoint import load_checkpoint
+    from hyperfem.simulation.render import Render
+
+    case = load_case(args.case, args.overrides)
+    options = dict(case.output.render.options) if case.output.render is not None else {}
+    options.pop("every", None)
+    for key in ("scalars", "scale"):
+        if getattr(args, key) is not None:
+            options[key] = getattr(args, key)
+    spec = RenderSpec(tuple(options.items()))
+    # the case as its run built it, without writing anything but the picture
+    output = dataclasses.replace(case.output, render=spec, checkpoint_every=None)
+    case = dataclasses.replace(case, output=output)
+    source = args.checkpoint if args.checkpoint is not None else checkpoint_folder(case)
+    if (source / f"{case.name}.checkpoint").is_dir():  # the run's output folder
+        source = source / f"{case.name}.checkpoint"
+    built = build(case, MPI.COMM_WORLD)
+    simulation = built.simulation
+    meta = load_checkpoint(simulation, source)
+    (render,) = [o for o in built.outputs if isinstance(o, Render)]
+    target = args.output if args.output is not None else case.output.directory / f"{case.name}.png"
+    render.path = Path(target)
+    render.start(simulation)
+    render.draw(simulation, target)
+    state = "completed run" if meta.get("completed") else "checkpoint"
+    _say(f"wrote {target}: {case.name} at t = {float(meta['time']):g}, step {meta['step']} ({state}, {meta['path']})")
+
+
 def _convert(args) -> None:
     from hyperfem.app.meshconvert import convert
     from hyperfem.app.report import warn
@@ -385,6 +448,7 @@ COMMANDS = {
     "mesh": _mesh,
     "mesh-quality": _quality,
     "plot": _plot,
+    "render": _render_picture,
     "convert": _convert,
 }
 
