@@ -65,3 +65,15 @@ def test_projected_newton_smoke():
     assert len(rows) == 4 and all(r["converged"] for r in rows)
     d0 = rows[0]["test_point_displacement"]
     assert all(max(abs(a - b) for a, b in zip(r["test_point_displacement"], d0)) < 1e-6 for r in rows)
+
+
+@pytest.mark.serial
+def test_checkpoint_io_smoke():
+    """The checkpoint cost script runs; what it reads back is what it wrote."""
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "checkpoint_io.py"), "--sizes", "3"],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    (row,) = [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
+    assert row["unknowns"] == 3 * 7 * 4 * 4 and row["same_ranks_error"] == 0.0 and row["bytes"] > 0
