@@ -222,7 +222,7 @@ def test_bad_surfaces_are_refused(case, tmp_path):
 def test_surfaces_sharing_a_face_are_refused(tmp_path):
     source = tmp_path / "cube.inp"
     source.write_text(_inp("*Surface, name=a\n101, S1\n*Surface, name=b\n101\n"))
-    with pytest.raises(MeshError, match=r"boundaries 'a' and 'b' share 1 faces; hyperfem gives each face one boundary"):
+    with pytest.raises(MeshError, match=r"boundaries 'a' and 'b' share 1 face; hyperfem gives each face one boundary"):
         convert(source, tmp_path / "out.msh")
 
 

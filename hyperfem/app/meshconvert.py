@@ -301,9 +301,10 @@ def _one_boundary_per_face(boundaries, from_nodes, strict, path, cautions, notes
             for b in range(a):
                 shared = len(np.intersect1d(keys[kept[a]], keys[kept[b]]))
                 if shared:
+                    faces = f"{shared} face{'s' if shared > 1 else ''}"
                     raise MeshError(
-                        f"{path}: boundaries {kept[b]!r} and {kept[a]!r} share {shared} faces; hyperfem gives each "
-                        "face one boundary: remove or split one of the surfaces"
+                        f"{path}: boundaries {kept[b]!r} and {kept[a]!r} share {faces}; hyperfem gives each face "
+                        "one boundary: remove or split one of the surfaces"
                     )
     for name in sorted(from_nodes, key=lambda n: len(keys[n])):
         other = next((k for k in kept if len(np.intersect1d(keys[name], keys[k]))), None)
