@@ -243,7 +243,8 @@ class RenderSpec:
     """``[output] render``: a :class:`~hyperfem.simulation.render.Render` of the final state (and every k steps).
 
     Attributes:
-        options: The keyword arguments of ``Render`` that the case gives, in the order of :data:`hyperfem.app.sections.RENDER`
+        options: The keyword arguments of ``Render`` that the case gives, in the order of
+            :data:`hyperfem.app.sections.RENDER`
             (``undeformed = "none"`` as ``None``).
     """
 
