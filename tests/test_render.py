@@ -305,7 +305,7 @@ def test_render_command_draws_a_checkpoint(comm, tmp_path, capsys):
     if comm.rank == 0:
         source.write_text(CASE.replace(RENDER_LINE, "").replace("checkpoint = false", "checkpoint_every = 1"))
     comm.Barrier()
-    with pytest.raises(CheckpointError, match="no checkpoint there"):
+    with pytest.raises(CheckpointError, match=r"cannot draw the state of .*nothing: no checkpoint there"):
         dispatch(["render", str(source), "--checkpoint", str(folder / "nothing")])
     pytest.importorskip("pyvista")
     dispatch(["run", str(source), "--output", str(folder / "out")])

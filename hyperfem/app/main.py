@@ -396,6 +396,7 @@ def _render_picture(args) -> None:
     from hyperfem.app.casefile import load_case
     from hyperfem.app.python_equivalent import checkpoint_folder
     from hyperfem.app.spec import RenderSpec
+    from hyperfem.io.checkpoint import resolve_checkpoint
     from hyperfem.simulation.checkpoint import load_checkpoint
     from hyperfem.simulation.render import Render
 
@@ -412,6 +413,7 @@ def _render_picture(args) -> None:
     source = args.checkpoint if args.checkpoint is not None else checkpoint_folder(case)
     if (source / f"{case.name}.checkpoint").is_dir():  # the run's output folder
         source = source / f"{case.name}.checkpoint"
+    source = resolve_checkpoint(source, MPI.COMM_WORLD, action="draw the state of")  # before building anything
     built = build(case, MPI.COMM_WORLD)
     simulation = built.simulation
     meta = load_checkpoint(simulation, source)

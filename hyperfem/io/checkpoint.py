@@ -252,8 +252,10 @@ def write_checkpoint(
     return final
 
 
-def resolve_checkpoint(path: str | Path, comm) -> Path:
+def resolve_checkpoint(path: str | Path, comm, *, action: str = "restart from") -> Path:
     """The step folder ``path`` names: a checkpoint folder (its latest), its latest.json, a step folder, meta.json.
+
+    ``action`` starts the message of a failure (``"cannot <action> <path>: ..."``).
 
     Raises:
         CheckpointError: On every rank, if there is no checkpoint there.
@@ -286,7 +288,7 @@ def resolve_checkpoint(path: str | Path, comm) -> Path:
         try:
             found = find()
         except (OSError, ValueError) as exc:
-            error = f"cannot restart from {path}: {exc}"
+            error = f"cannot {action} {path}: {exc}"
     found, error = comm.bcast((found, error), root=0)
     if error:
         raise CheckpointError(error)
