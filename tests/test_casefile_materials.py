@@ -335,6 +335,7 @@ def test_von_mises_field(law, degree, folder):
     a = 1.25
     constants, P = LAWS[law]
     text = _box_case(folder, law, constants, a, ("x0", "y0", "z0")).replace("fields = []", 'fields = ["von_mises"]')
+    text = text.replace("checkpoint = false", "checkpoint_every = 1")
     text += f"[problem]\ndegree = {degree}\n"
     path = folder / f"von_mises_{law}_{degree}.toml"
     if comm.rank == 0:
@@ -347,3 +348,52 @@ def test_von_mises_field(law, degree, folder):
     (output,) = [o for o in built.outputs if isinstance(o, FieldOutput)]
     values = output.cell_functions["von_mises"].x.array
     np.testing.assert_allclose(values, abs(sigma), rtol=1e-6)
+    # the same field from the run's checkpoint, in a model built afresh: the rotation is that of the loaded state
+    from hyperfem.simulation.checkpoint import load_checkpoint
+    from hyperfem.simulation.fields import cell_field_expressions
+    from hyperfem.simulation.measures import CellFunctions
+
+    again = build(load_case(path, output=folder / f"von_mises_{law}_{degree}"), comm)
+    load_checkpoint(again.simulation, folder / f"von_mises_{law}_{degree}" / f"{again.case.name}.checkpoint")
+    field = CellFunctions(again.domain, cell_field_expressions(again.problem, ["von_mises"], again.material), 0)
+    field.refresh()
+    np.testing.assert_allclose(field.functions[0].x.array, abs(sigma), rtol=1e-6)
+
+
+def test_stress_field_from_a_checkpoint_of_a_rotated_state(folder):
+    """ARAP, x = Q D X: a model built afresh from the run's checkpoint has the rotation of the loaded state.
+
+    sigma = 2 mu Q (D - I) D Q^T / J, whose von Mises value needs R = Q: with R left at I (the rotation of
+    the undeformed state) the field would be that of 2 mu (Q D - I) D^T Q^T / J, far off.
+    """
+    from hyperfem.app import build, load_case
+    from hyperfem.simulation.checkpoint import load_checkpoint
+    from hyperfem.simulation.fields import cell_field_expressions
+    from hyperfem.simulation.measures import CellFunctions
+
+    comm = MPI.COMM_WORLD
+    text = _rotated_stretch_case("arap", f"E = {E!r}\nnu = {NU!r}", '"linear"').replace(
+        "checkpoint = false", "checkpoint_every = 1"
+    )
+    path = folder / "rotated_checkpoint.toml"
+    if comm.rank == 0:
+        path.write_text(text)
+    comm.Barrier()
+    out = folder / "rotated_checkpoint"
+    assert build(load_case(path, output=out), comm).simulation.run()["completed"]
+    again = build(load_case(path, output=out), comm)
+    load_checkpoint(again.simulation, out / f"{again.case.name}.checkpoint")
+    field = CellFunctions(again.domain, cell_field_expressions(again.problem, ["von_mises"], again.material), 0)
+    field.refresh()
+
+    Q, D = _rotation(THETA), np.diag([STRETCH, 1.0, 1.0])
+    J = STRETCH
+
+    def mises(s: np.ndarray) -> float:
+        dev = s - np.trace(s) / 3.0 * np.eye(3)
+        return float(np.sqrt(1.5 * np.sum(dev * dev)))
+
+    right = mises(2.0 * MU * (Q @ D - Q) @ (Q @ D).T / J)
+    wrong = mises(2.0 * MU * (Q @ D - np.eye(3)) @ (Q @ D).T / J)
+    assert abs(wrong - right) > 0.1 * right  # the check can tell the two apart
+    np.testing.assert_allclose(field.functions[0].x.array, right, rtol=1e-6)

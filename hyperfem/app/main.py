@@ -398,7 +398,7 @@ def _render_picture(args) -> None:
     from hyperfem.app.spec import RenderSpec
     from hyperfem.io.checkpoint import resolve_checkpoint
     from hyperfem.simulation.checkpoint import load_checkpoint
-    from hyperfem.simulation.render import Render
+    from hyperfem.simulation.render import Render, require_pyvista
 
     case = load_case(args.case, args.overrides)
     options = dict(case.output.render.options) if case.output.render is not None else {}
@@ -414,6 +414,7 @@ def _render_picture(args) -> None:
     if (source / f"{case.name}.checkpoint").is_dir():  # the run's output folder
         source = source / f"{case.name}.checkpoint"
     source = resolve_checkpoint(source, MPI.COMM_WORLD, action="draw the state of")  # before building anything
+    require_pyvista(MPI.COMM_WORLD)
     built = build(case, MPI.COMM_WORLD)
     simulation = built.simulation
     meta = load_checkpoint(simulation, source)

@@ -43,7 +43,6 @@ degenerate tetrahedra, and inverted (negatively oriented) tetrahedra unless
 from __future__ import annotations
 
 import re
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,7 +102,7 @@ class Conversion:
         )
 
 
-_HYBRID_TET = re.compile(r"(?im)^(\s*\*\s*ELEMENT\b[^\n]*?\bTYPE\s*=\s*)C3D4H\b")
+_HYBRID_TET = re.compile(r"(?im)^\s*\*\s*ELEMENT\b[^\n]*?\bTYPE\s*=\s*C3D4H\b")
 
 
 def _read(path: Path, notes: list[str] | None = None):
@@ -111,19 +110,25 @@ def _read(path: Path, notes: list[str] | None = None):
     import meshio
 
     try:
-        if path.suffix.lower() == ".inp":
-            text = path.read_text(errors="replace")
-            if _HYBRID_TET.search(text):
-                # meshio 5.3 maps C3D4H to a cell type it does not know. The nodes are those of C3D4; "hybrid"
-                # is Abaqus's u-p formulation, a solver choice (formulation = "mixed" here), not geometry.
-                with tempfile.TemporaryDirectory() as tmp:
-                    plain = Path(tmp) / path.name
-                    plain.write_text(_HYBRID_TET.sub(r"\g<1>C3D4", text))
-                    mesh = meshio.read(plain)
-                if notes is not None:
-                    notes.append('C3D4H (hybrid) tetrahedra read as C3D4; use formulation = "mixed" for near '
-                                 "incompressibility")
-                return mesh
+        if path.suffix.lower() == ".inp" and _HYBRID_TET.search(path.read_text(errors="replace")):
+            # meshio 5.3 maps C3D4H to a cell type it does not know ("tetra4"). The nodes are those of C3D4;
+            # "hybrid" is Abaqus's u-p formulation, a solver choice (formulation = "mixed" here), not geometry.
+            from meshio.abaqus import _abaqus
+
+            table = _abaqus.abaqus_to_meshio_type
+            saved = table.get("C3D4H")
+            table["C3D4H"] = "tetra"
+            try:
+                mesh = meshio.read(path)
+            finally:
+                if saved is None:
+                    table.pop("C3D4H", None)
+                else:
+                    table["C3D4H"] = saved
+            if notes is not None:
+                notes.append('C3D4H (hybrid) tetrahedra read as C3D4; use formulation = "mixed" for near '
+                             "incompressibility")
+            return mesh
         return meshio.read(path)
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - meshio raises many types, and may call sys.exit
         reason = (str(exc).splitlines() or [type(exc).__name__])[0] if str(exc) else type(exc).__name__

@@ -236,14 +236,18 @@ def write_checkpoint(
     write_json(partial / "meta.json", record, comm)
 
     def commit() -> None:
-        if final.exists():
-            shutil.rmtree(final)
+        old = folder / f"{final.name}.old"
+        if final.exists():  # the same step again (e.g. now completed): keep it until the new one is in place
+            if old.exists():
+                shutil.rmtree(old)
+            os.replace(final, old)  # a kill from here to the next line leaves .old, which latest.json's reader takes
         os.replace(partial, final)
+        shutil.rmtree(old, ignore_errors=True)
         latest = folder / ".latest.json.partial"
         latest.write_text(json.dumps({"path": final.name, "step": int(step)}) + "\n")
         os.replace(latest, folder / "latest.json")
         if keep is not None:
-            done = sorted(p for p in folder.glob("step-*") if p.is_dir() and not p.name.endswith(".partial"))
+            done = sorted(p for p in folder.glob("step-*") if p.is_dir() and not p.name.endswith((".partial", ".old")))
             for old in done[: max(0, len(done) - keep)]:
                 if old != final:
                     shutil.rmtree(old, ignore_errors=True)
@@ -280,6 +284,8 @@ def resolve_checkpoint(path: str | Path, comm, *, action: str = "restart from") 
                 raise ValueError(f"unreadable {latest} ({type(exc).__name__})") from None
             if (path / name / "meta.json").is_file():
                 return str(path / name)
+            if (path / f"{name}.old" / "meta.json").is_file():  # killed while that step was written again
+                return str(path / f"{name}.old")
             raise ValueError(f"{latest} names {name}, which holds no complete checkpoint")
         raise ValueError("no checkpoint there (no meta.json or latest.json)")
 
@@ -371,8 +377,8 @@ def _by_key(folder: Path, files: list[Path], functions: Mapping[str, fem.Functio
     names = [n for key in functions for n in (key, f"{key}.keys")]
     try:
         parts = [_load(p, names) for p in files]
-    except (OSError, ValueError) as exc:
-        return [], f"{folder}: the rank files cannot be read: {exc}"
+    except Exception as exc:  # noqa: BLE001 - zipfile.BadZipFile, EOFError, ...: agreed by the caller
+        return [], f"{folder}: the rank files cannot be read: {type(exc).__name__}: {exc}"
     updates = []
     for key, f in functions.items():
         if any(key not in part for part in parts):
@@ -400,6 +406,8 @@ def _by_key(folder: Path, files: list[Path], functions: Mapping[str, fem.Functio
             )
         _, group = np.unique(np.concatenate([keys, current]), axis=0, return_inverse=True)
         group = group.reshape(-1)
+        if np.unique(group[: keys.shape[0]]).size != keys.shape[0]:
+            return [], f"{folder}: field {key!r}: the stored dof keys are not unique (a space without keys)"
         row = np.full(group.max() + 1, -1, dtype=np.int64)
         row[group[: keys.shape[0]]] = np.arange(keys.shape[0])
         found = row[group[keys.shape[0] :]]
@@ -439,8 +447,8 @@ def read_functions(path: str | Path, functions: Mapping[str, fem.Function], comm
     if len(files) == comm.size:
         try:
             stored = _load(folder / _rank_file(comm.rank, comm.size))
-        except (OSError, ValueError) as exc:
-            error = f"{folder}/{_rank_file(comm.rank, comm.size)} cannot be read: {exc}"
+        except Exception as exc:  # noqa: BLE001 - a damaged file (BadZipFile, EOFError, ...): agreed below
+            error = f"{folder}/{_rank_file(comm.rank, comm.size)} cannot be read: {type(exc).__name__}: {exc}"
         if not error and functions:
             mesh = next(iter(functions.values())).function_space.mesh
             cells = stored.get("original_cells")

@@ -37,7 +37,16 @@ from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, Spli
 from hyperfem.simulation.outputs import VTX, Output
 from hyperfem.solver.stepping import StepRecord
 
-__all__ = ["BoundaryAverage", "CellFields", "CellFunctions", "Probe", "RadialBulge", "Reaction", "cauchy_stress"]
+__all__ = [
+    "BoundaryAverage",
+    "CellFields",
+    "CellFunctions",
+    "Probe",
+    "RadialBulge",
+    "Reaction",
+    "cauchy_stress",
+    "quadrature_degree",
+]
 
 Expr = ufl.core.expr.Expr
 
@@ -238,7 +247,7 @@ class CellFunctions:
         mesh = domain.mesh
         self._parts: list[tuple[fem.Function, list]] = []
         self.functions: list[fem.Function] = []
-        self._volumes: fem.Function | None = None
+        self._volumes: dict[int, fem.Function] = {}
         for name, spec in fields.items():
             parts = dict(spec) if isinstance(spec, Mapping) else {None: spec}
             parts = {r: fem.Constant(mesh, float(e)) if isinstance(e, numbers.Real) else e for r, e in parts.items()}
@@ -249,7 +258,7 @@ class CellFunctions:
             compiled = []
             for region, e in parts.items():
                 cells = None if region is None else domain.cells(region)
-                rule = _quadrature_degree(e)
+                rule = quadrature_degree(e)
                 if rule is None:
                     compiled.append((cells, fem.Expression(e, points)))
                 elif degree == 0:
@@ -257,7 +266,7 @@ class CellFunctions:
                     # the cell average on their rule instead
                     w = ufl.TestFunction(V)
                     dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": rule})
-                    compiled.append((cells, fem.form(ufl.inner(e, w) * dx)))
+                    compiled.append((cells, (fem.form(ufl.inner(e, w) * dx), rule)))
                 else:
                     raise ParameterError(
                         f"CellFields: {name} depends on values kept at quadrature points; it has cell values "
@@ -266,24 +275,27 @@ class CellFunctions:
             self._parts.append((f, compiled))
             self.functions.append(f)
 
-    def _cell_volumes(self, mesh) -> fem.Function:
-        if self._volumes is None:
+    def _cell_volumes(self, mesh, rule: int) -> fem.Function:
+        """Cell volumes on the quadrature rule of degree ``rule`` (that of the averages: exact ratio for constants)."""
+        if rule not in self._volumes:
             V0 = fem.functionspace(mesh, ("DG", 0))
-            self._volumes = fem.Function(V0)
-            b = fem.assemble_vector(fem.form(ufl.TestFunction(V0) * ufl.dx(domain=mesh)))
+            volumes = fem.Function(V0)
+            dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": rule})
+            b = fem.assemble_vector(fem.form(ufl.TestFunction(V0) * dx))
             b.scatter_reverse(la.InsertMode.add)
             b.scatter_forward()
-            self._volumes.x.array[:] = b.array
-        return self._volumes
+            volumes.x.array[:] = b.array
+            self._volumes[rule] = volumes
+        return self._volumes[rule]
 
-    def _average(self, f: fem.Function, form, cells) -> None:
+    def _average(self, f: fem.Function, form, rule: int, cells) -> None:
         """``f`` on ``cells`` (all for ``None``) := the cell averages, ∫ e w dx / |K|."""
         mesh = f.function_space.mesh
         b = fem.assemble_vector(form)
         b.scatter_reverse(la.InsertMode.add)
         b.scatter_forward()
         bs = f.function_space.dofmap.bs
-        volumes = self._cell_volumes(mesh)
+        volumes = self._cell_volumes(mesh, rule)
         tdim = mesh.topology.dim
         if cells is None:
             cmap = mesh.topology.index_map(tdim)
@@ -297,8 +309,8 @@ class CellFunctions:
         """Interpolate every expression at the current state (cell averages where the expression needs them)."""
         for f, compiled in self._parts:
             for cells, expr in compiled:
-                if isinstance(expr, fem.Form):
-                    self._average(f, expr, cells)
+                if isinstance(expr, tuple):
+                    self._average(f, *expr, cells)
                 elif cells is None:
                     f.interpolate(expr)
                 else:
@@ -306,7 +318,7 @@ class CellFunctions:
             f.x.scatter_forward()
 
 
-def _quadrature_degree(e) -> int | None:
+def quadrature_degree(e) -> int | None:
     """The rule of the quadrature-space coefficients in ``e`` (their highest degree), or ``None`` if it has none."""
     from ufl.algorithms import extract_coefficients
 

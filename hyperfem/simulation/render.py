@@ -209,9 +209,13 @@ def _local_triangles(mesh: dmesh.Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarr
 def _corner_values(f: fem.Function, corners: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """``f`` at every corner, evaluated in the triangle's cell: shape ``(m, 3)`` or ``(m, 3, k)``."""
     m = len(cells)
-    values = f.eval(corners.reshape(-1, 3), np.repeat(cells, 3).astype(np.int32)) if m else np.zeros((0, 1))
-    values = np.asarray(values, dtype=float).reshape(m, 3, -1)
-    return values[..., 0] if values.shape[2] == 1 else values
+    k = int(np.prod(f.ufl_shape)) if f.ufl_shape else 1
+    if m == 0:  # a rank whose cells touch no boundary
+        values = np.zeros((0, 3, k))
+    else:
+        values = np.asarray(f.eval(corners.reshape(-1, 3), np.repeat(cells, 3).astype(np.int32)), dtype=float)
+        values = values.reshape(m, 3, k)
+    return values[..., 0] if k == 1 else values
 
 
 def _is_piecewise_constant(f: fem.Function) -> bool:
@@ -277,7 +281,8 @@ def _local_part(mesh: dmesh.Mesh, u: fem.Function, functions: dict[str, fem.Func
     x3[..., :gdim] = corners[..., :gdim]
     ucorner = _corner_values(u, corners, cells)
     u3 = np.zeros_like(x3)
-    u3[..., : ucorner.shape[-1]] = ucorner.reshape(*x3.shape[:2], -1)
+    k = 1 if ucorner.ndim == 2 else ucorner.shape[-1]
+    u3[..., :k] = ucorner.reshape(*x3.shape[:2], k)
     local = {
         "ids": np.asarray(mesh.geometry.input_global_indices, dtype=np.int64)[nodes],
         "x": x3,
@@ -711,8 +716,13 @@ class Render(Output):
             expressions = cell_field_expressions(
                 base, [self.scalars], self.materials, fibres=self.fibres, activation=self.activation
             )
-            # the degree of the stress of a P_k displacement (k - 1); drawn per vertex from degree 1 on
-            self._cells = CellFunctions(base.domain, expressions, max(0, base.degree - 1))
+            from hyperfem.simulation.measures import quadrature_degree
+
+            # the degree of the stress of a P_k displacement (k - 1); drawn per vertex from degree 1 on. Values
+            # kept at quadrature points (a material's rotation field) have cell values only (degree 0).
+            parts = [e for spec in expressions.values() for e in (spec.values() if isinstance(spec, dict) else [spec])]
+            on_points = any(quadrature_degree(e) is not None for e in parts if hasattr(e, "ufl_shape"))
+            self._cells = CellFunctions(base.domain, expressions, 0 if on_points else max(0, base.degree - 1))
         if self.final:
             sim.files["render"] = str(self.path)
 
