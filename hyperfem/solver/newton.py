@@ -689,6 +689,8 @@ class NewtonSolver:
         bcs = self.problem.bcs
         x = self._work
         self.problem.u.x.petsc_vec.copy(x)
+        # copy() moves the owned entries only; the lifting below reads x's ghosts too.
+        _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
         self.refresh()
         A = nlp.A
         A.zeroEntries()
@@ -763,7 +765,8 @@ class NewtonSolver:
         u.x.scatter_forward()
         reason = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
         message = ""
-        if self.min_jacobian is None or self.min_J() > self.min_jacobian:
+        solved = self.min_jacobian is None or self.min_J() > self.min_jacobian
+        if solved:
             try:
                 self._nlp.solve()
                 reason = int(snes.getConvergedReason())
@@ -777,8 +780,9 @@ class NewtonSolver:
         else:
             message = f"start state has J <= {self.min_jacobian:g}"
         u.x.scatter_forward()
-        iterations = int(snes.getIterationNumber())
-        ksp_reason = int(snes.getKSP().getConvergedReason())
+        # A solve refused at its start ran no SNES: SNES still holds the previous solve's counts.
+        iterations = int(snes.getIterationNumber()) if solved else 0
+        ksp_reason = int(snes.getKSP().getConvergedReason()) if solved else 0
         if self._inversion_giveup and not message:
             message = f"every step along the Newton direction inverts elements (halved {MAX_INVERSION_HALVINGS} times)"
         elif reason == int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE) and not message:
@@ -809,7 +813,7 @@ class NewtonSolver:
             reason=reason,
             reason_name=_reason_name(reason),
             iterations=iterations,
-            linear_iterations=int(snes.getLinearSolveIterations()),
+            linear_iterations=int(snes.getLinearSolveIterations()) if solved else 0,
             residual_norms=list(self._norms),
             wall_time=wall,
             min_J=minJ,
