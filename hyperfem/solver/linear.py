@@ -58,6 +58,7 @@ from petsc4py import PETSc
 __all__ = [
     "DIRECT",
     "DIRECT_THRESHOLD",
+    "HIGH_ORDER_DIRECT_THRESHOLDS",
     "MIXED_DIRECT_THRESHOLD",
     "MIXED_ITERATIVE",
     "NONSYMMETRIC_ITERATIVE",
@@ -128,6 +129,31 @@ bend, P1, this 2-core machine, serial): CG + GAMG vs MUMPS 0.42 / 0.46 s at
 4.1k unknowns, 0.83 / 1.01 s at 7.6k, 1.32 / 2.33 s at 12.7k, 2.8-3.9 / 7.7 s
 at 28.6k. Below 10^4 LU is as fast and more robust (indefinite tangents do
 not stop it), so small problems keep it."""
+
+HIGH_ORDER_DIRECT_THRESHOLDS: dict[int, int] = {3: 40_000, 4: 150_000}
+"""Unknowns from which a displacement problem of degree 3, and of degree 4 and higher, is solved iteratively.
+
+Smoothed-aggregation AMG is built for low-order stencils: on P3–P5 it needs
+many more CG iterations per solve, each on a tangent with 450–1,500 nonzeros
+per row, while the LU factorisation grows less than that. Measured with
+``benchmarks/linear_degree.py`` (bend, full load in one step, serial, this
+2-core machine with the other core busy; the Newton solve after JIT):
+
+=====  ========  ==================  ==============
+degree unknowns  CG + GAMG           MUMPS
+=====  ========  ==================  ==============
+P1     12.2k     0.8 s (77 CG its)   1.4 s
+P2     30.8k     5.4 s (126)         7.1 s
+P3     16.1k     3.9 s (192)         2.9 s
+P3     45.1k     15.3 s (182)        17.3 s
+P4     35.8k     30.1 s (290)        16.7 s
+P5     67.4k     87.0 s (416)        43.7 s
+=====  ========  ==================  ==============
+
+A P5 bend on beam_h1 had gone from 39 s (MUMPS, before the iterative path)
+to 190 s; with these thresholds it is back on MUMPS. The P4/P5 crossover
+lies above the sizes measured; 150k unknowns is a guess that keeps the LU's
+memory (about 5 GB at 150k for P4, extrapolated) well inside a laptop."""
 
 MIXED_DIRECT_THRESHOLD = 40_000
 """Unknowns from which the mixed problem is solved with :data:`MIXED_ITERATIVE`.
@@ -300,7 +326,8 @@ def choose_linear_solver(
 
     Args:
         problem: A :class:`~hyperfem.problem.protocol.SolidProblem`.
-        threshold: Unknowns from which a displacement problem is solved iteratively.
+        threshold: Unknowns from which a displacement problem is solved iteratively
+            (the default rises with the degree: :data:`HIGH_ORDER_DIRECT_THRESHOLDS`).
         mixed_threshold: Unknowns from which the mixed problem is solved iteratively.
     """
     W = problem.u.function_space
@@ -314,6 +341,9 @@ def choose_linear_solver(
             preconditioner_shift=base.schur_preconditioner_term(),
             configure=_fieldsplit_configure(problem),
         )
+    degree = V.ufl_element().embedded_superdegree
+    if degree >= 3 and threshold == DIRECT_THRESHOLD:
+        threshold = HIGH_ORDER_DIRECT_THRESHOLDS[min(degree, 4)]
     if _global_size(W) < threshold:
         return LinearSolver()
     options = SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE

@@ -1,0 +1,75 @@
+"""CG + GAMG against MUMPS for the Newton solve of the bend, by displacement degree.
+
+Why the automatic choice keeps LU to larger sizes for P3 and above
+(:data:`hyperfem.solver.linear.HIGH_ORDER_DIRECT_THRESHOLDS`): smoothed
+aggregation needs many more Krylov iterations on high-order tangents. Each
+case solves the full load in one Newton solve, once to compile and once
+timed from u = 0, with each linear solver forced; one JSON line per case.
+
+    python benchmarks/linear_degree.py [--cases 1:0.35 2:0.5 3:1 3:0.7 4:1 5:1] [--output FILE]
+"""
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from mpi4py import MPI  # noqa: E402, I001  (before dolfinx/petsc4py)
+
+import hyperfem as hf  # noqa: E402
+from hyperfem.cases import CantileverSpec, bend_load  # noqa: E402
+from hyperfem.solver.linear import DIRECT, choose_linear_solver  # noqa: E402
+
+
+def run(domain, degree: int, variant: str) -> dict:
+    params = CantileverSpec().lame
+    problem = hf.HyperelasticProblem(
+        domain, lambda F: hf.materials.neo_hookean(F, params), degree=degree, bcs=[hf.Clamp("clamped")],
+        loads=[bend_load()],
+    )
+    if variant == "direct":
+        solver = hf.NewtonSolver(problem, petsc_options=dict(DIRECT))
+    else:
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, threshold=0))
+    problem.set_load_factor(1.0)
+    solver.solve(raise_on_failure=True)
+    problem.u.x.array[:] = 0.0
+    start = time.perf_counter()
+    rec = solver.solve(raise_on_failure=True)
+    wall = domain.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+    return {
+        "degree": degree, "variant": variant, "linear_solver": rec.linear_solver,
+        "unknowns": problem.V.dofmap.index_map.size_global * problem.V.dofmap.index_map_bs,
+        "newton": rec.iterations, "krylov": rec.linear_iterations, "wall_s": round(wall, 3),
+        "pc_setup_s": round(rec.pc_setup_time, 3), "ranks": domain.comm.size,
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cases", nargs="+", default=["1:0.35", "2:0.5", "3:1", "3:0.7", "4:1", "5:1"],
+                   help="DEGREE:H pairs (beam element size h)")
+    p.add_argument("--output", type=Path, default=None, help="append the JSON lines to this file")
+    args = p.parse_args()
+    comm = MPI.COMM_WORLD
+    for case in args.cases:
+        degree, h = int(case.split(":")[0]), float(case.split(":")[1])
+        committed = Path(__file__).resolve().parent.parent / "meshes" / "beam_h1.msh"
+        domain = hf.read_mesh(committed, comm) if h == 1.0 else hf.beam_mesh(h=h, comm=comm)
+        for variant in ("iterative", "direct"):
+            row = {**run(domain, degree, variant), "h": h}
+            if comm.rank == 0:
+                line = json.dumps(row)
+                print(line, flush=True)
+                if args.output is not None:
+                    with open(args.output, "a") as f:
+                        f.write(line + "\n")
+
+
+if __name__ == "__main__":
+    main()
