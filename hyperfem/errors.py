@@ -12,10 +12,12 @@ __all__ = [
     "CheckpointError",
     "ConvergenceError",
     "HyperfemError",
+    "Interrupted",
     "MeshError",
     "MeshFileNotFoundError",
     "OutputError",
     "ParameterError",
+    "ProblemSizeError",
     "UnknownGroupError",
 ]
 
@@ -26,6 +28,14 @@ class HyperfemError(Exception):
 
 class ParameterError(HyperfemError, ValueError):
     """Invalid material, load, solver or stepping parameter."""
+
+
+class ProblemSizeError(ParameterError):
+    """A mesh size or a degree whose estimated memory exceeds what the machine has (:mod:`hyperfem.mesh.budget`).
+
+    The message gives the estimate, the limit and the override (``allow_large=True``,
+    ``--allow-large``, ``HYPERFEM_ALLOW_LARGE=1``).
+    """
 
 
 class MeshError(HyperfemError):
@@ -89,3 +99,18 @@ class SolverError(HyperfemError, RuntimeError):
     solve) is a failed :class:`~hyperfem.solver.SolveRecord`, cut back by the
     stepper; this is raised instead, with PETSc's error code.
     """
+
+
+class Interrupted(HyperfemError):
+    """The user interrupted a run (Ctrl-C, SIGTERM); the last completed step was kept.
+
+    Attributes:
+        time: The time (load factor) of the last completed step.
+    """
+
+    exit_code = 130
+    """Exit status of the command (128 + SIGINT, as shells report an interrupted program)."""
+
+    def __init__(self, message: str, time: float = 0.0):
+        super().__init__(message)
+        self.time = float(time)

@@ -53,6 +53,12 @@ examples:
 """
 
 
+ALLOW_LARGE_HELP = (
+    "mesh even if the estimated memory (cells ~ volume / (0.2 h^3), ~1 kB each) exceeds what this machine has "
+    "available (also: HYPERFEM_ALLOW_LARGE=1)"
+)
+
+
 def _version() -> str:
     import dolfinx
 
@@ -133,7 +139,12 @@ def make_parser() -> ArgumentParser:
     d.add_argument("name", nargs="?", default=None, help="demo name (without one: list them)")
     d.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the demo")
 
-    m = sub.add_parser("mesh", help="generate a gmsh mesh", description="Generate a mesh with gmsh and write it.")
+    m = sub.add_parser(
+        "mesh",
+        help="generate a gmsh mesh",
+        description="Generate a mesh with gmsh and write it (rank 0). Sizes whose estimated memory exceeds what the "
+        "machine has available are refused with the estimate, unless --allow-large or HYPERFEM_ALLOW_LARGE=1.",
+    )
     msub = m.add_subparsers(dest="generator", metavar="GENERATOR")
     beam = msub.add_parser(
         "beam",
@@ -142,7 +153,14 @@ def make_parser() -> ArgumentParser:
     )
     beam.add_argument("--size", "--h", dest="size", type=positive_float, default=1.0, help="element size h (m)")
     beam.add_argument("--order", type=int, choices=(1, 2), default=1, help="geometric order")
-    beam.add_argument("-o", "--output", type=Path, default=None, help="output .msh (default beam_h<size>.msh)")
+    beam.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output .msh (default: beam_h<SIZE>.msh in the current folder; the path written is printed)",
+    )
+    beam.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
     fus = msub.add_parser(
         "fusiform",
         help="the fusiform muscle with tendons of seed 000",
@@ -156,7 +174,14 @@ def make_parser() -> ArgumentParser:
     fus.add_argument("--tendon-radius", type=positive_float, default=None, help="tendon radius (m), below R")
     fus.add_argument("--tendon-length", type=positive_float, default=None, help="length of each tendon (m)")
     fus.add_argument("--sections", type=positive_int, default=None, help="lofted cross-sections (odd, >= 3)")
-    fus.add_argument("-o", "--output", type=Path, default=None, help="output .msh (default fusiform_h<size>.msh)")
+    fus.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output .msh (default: fusiform_h<SIZE>.msh in the current folder; the path written is printed)",
+    )
+    fus.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
 
     pl = sub.add_parser(
         "plot",
@@ -338,7 +363,9 @@ def _mesh(args) -> None:
                 for k in ("belly_length", "belly_radius", "tendon_radius", "tendon_length", "sections")
                 if getattr(args, k) is not None
             }
-            write_fusiform_mesh(out, h=args.size, geometry=FusiformGeometry(**given), order=args.order)
+            write_fusiform_mesh(
+                out, h=args.size, geometry=FusiformGeometry(**given), order=args.order, allow_large=allow_large
+            )
         return "wrote " + describe_msh(out)
 
     _say(_on_rank0(write))
@@ -432,7 +459,7 @@ def _convert(args) -> None:
     from hyperfem.app.report import warn
 
     def work():
-        report = convert(args.input, args.output, reorient=args.reorient, tags=args.tags)
+        report = convert(args.input, args.output, reorient=args.reorient, tags=args.tags, names=args.names)
         return report.summary(), report.notes, report.warnings
 
     line, notes, cautions = _on_rank0(work)

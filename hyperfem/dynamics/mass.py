@@ -2,9 +2,15 @@ r"""Mass density and the inertia (mass-weighted) integrals.
 
 The consistent mass matrix is :math:`M_{ab} = \int_\Omega \rho\,N_a N_b\,dX`,
 integrated exactly (quadrature degree :math:`2p` for degree-:math:`p`
-elements). The lumped variant uses the vertex quadrature rule, which for
-linear (P1) elements gives the row-sum diagonal mass; it is refused for
-higher degrees, where vertex lumping would leave nodes without mass.
+elements). On quadrilaterals and hexahedra a degree counts per direction:
+:math:`2p` is the :math:`(p+1)^d`-point Gauss rule, exact on
+parallelepipeds; on a distorted (trilinear) hexahedron :math:`\det J` adds
+degree 2 per direction, so the entries are the usual fully integrated ones
+rather than exact, while the total mass (:math:`\int\rho\det J`) stays exact.
+The lumped variant uses the vertex quadrature rule, which for linear (P1)
+simplices gives the row-sum diagonal mass, and for Q1 on parallelepipeds
+too (:math:`\rho|K|/2^d` to each vertex); it is refused for higher degrees,
+where vertex lumping would leave nodes without mass.
 
 Density may differ per region (physical-group name → :math:`\rho_r`).
 
@@ -74,7 +80,8 @@ def lumped_mass(density: MassDensity, domain: Domain, space: fem.FunctionSpace) 
 
     Assembled with the vertex rule of :meth:`MassDensity.metadata` (for P1
     the row sums of the consistent mass: :math:`\rho|K|/(d+1)` to each vertex
-    of a simplex), the same for every component of a vector space.
+    of a simplex, :math:`\rho|K|/2^d` of a parallelepiped), the same for
+    every component of a vector space.
 
     Args:
         density: The density (``lumped`` or not: the diagonal is the same).

@@ -315,7 +315,8 @@ class RotationField:
 
         Binding again to the same ``F`` (and degree) is a no-op. The default
         degree is that of :class:`~hyperfem.problem.HyperelasticProblem` for
-        the degree of the function ``F`` depends on (1 for P1, ``2 p`` otherwise).
+        the degree of the function ``F`` depends on and the mesh's cell type
+        (1 for P1 simplices, ``2 p`` otherwise, Q1 hexahedra included).
 
         Raises:
             ParameterError: ``F`` is symbolic (no DOLFINx function), not a
@@ -347,11 +348,13 @@ class RotationField:
         # Skipping an unchanged state is safe only when F depends on nothing but DOLFINx functions.
         only_functions = all(isinstance(c, fem.Function) for c in coefficients) and not extract_constants(F)
         self._functions = list(coefficients) if only_functions else []
-        if quadrature_degree is None:
-            p = u.function_space.ufl_element().embedded_superdegree
-            quadrature_degree = 1 if p == 1 else 2 * p
         d = shape[0]
         mesh = u.function_space.mesh
+        if quadrature_degree is None:
+            from hyperfem.problem.quadrature import volume_quadrature_degree
+
+            p = u.function_space.ufl_element().embedded_superdegree
+            quadrature_degree = volume_quadrature_degree(p, mesh.topology.cell_type)
         cellwise = _is_cellwise_constant(F, mesh)
         self.rotation = QuadratureField(
             mesh, quadrature_degree, (d, d), name=f"{where}_rotation", cellwise_constant=cellwise

@@ -1,4 +1,8 @@
-"""Meshes: reading gmsh files, named groups, and geometry generators."""
+"""Meshes: reading gmsh files, named groups, geometry generators, and the checks made on them.
+
+:mod:`~hyperfem.mesh.budget` (the size guard) and :mod:`~hyperfem.mesh.orientation`
+(inverted and degenerate cells) are submodules.
+"""
 
 from hyperfem.mesh.beam import BEAM_GROUPS, beam_mesh, write_beam_mesh
 from hyperfem.mesh.domain import Domain

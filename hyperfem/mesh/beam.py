@@ -20,6 +20,7 @@ from mpi4py import MPI
 from hyperfem.errors import ParameterError
 from hyperfem.materials.parameters import is_finite_number
 from hyperfem.io.results import ensure_output_dir
+from hyperfem.mesh.budget import check_mesh_size
 from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
@@ -28,6 +29,7 @@ __all__ = ["BEAM_GROUPS", "beam_mesh", "write_beam_mesh"]
 
 BEAM_GROUPS = {"beam": 1, "clamped": 1, "free_end": 2, "surface": 3}
 LENGTH, WIDTH, HEIGHT = 10.0, 4.0, 4.0
+VOLUME = LENGTH * WIDTH * HEIGHT
 
 
 def _check(h: float, order: int) -> None:
@@ -63,37 +65,50 @@ def _build_beam_model(gmsh, h: float, order: int) -> None:
     gmsh.model.mesh.setOrder(order)
 
 
-def beam_mesh(h: float = 1.0, order: int = 1, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
+def beam_mesh(
+    h: float = 1.0, order: int = 1, comm: MPI.Comm = MPI.COMM_WORLD, *, allow_large: bool | None = None
+) -> Domain:
     """Generate the cantilever beam in memory and distribute it.
 
     Args:
         h: Target element size in metres.
         order: Geometric order of the tetrahedra (1 or 2).
         comm: Communicator; gmsh runs on rank 0 only.
+        allow_large: Mesh even if the estimate exceeds the available memory
+            (:mod:`hyperfem.mesh.budget`); ``None``: the ``HYPERFEM_ALLOW_LARGE`` environment variable.
 
     Returns:
         The distributed :class:`~hyperfem.mesh.Domain`.
+
+    Raises:
+        ParameterError: A bad size or order.
+        ProblemSizeError: Meshing at ``h`` would not fit in memory (on every rank).
     """
     _check(h, order)  # on every rank, before any collective call
+    check_mesh_size("beam mesh", VOLUME, h, comm, allow_large)
     data = distribute_model(comm, lambda gmsh: _build_beam_model(gmsh, h, order), 3, "beam mesh")
     return domain_from_meshdata(data, f"beam_mesh(h={h}, order={order})")
 
 
-def write_beam_mesh(path: str | Path, h: float = 1.0, order: int = 1) -> Path:
+def write_beam_mesh(path: str | Path, h: float = 1.0, order: int = 1, *, allow_large: bool | None = None) -> Path:
     """Write the beam mesh to a gmsh ``.msh`` (format 4.1) file. Serial; call on one rank.
 
     Args:
         path: Output file.
         h: Target element size in metres.
         order: Geometric order (1 or 2).
+        allow_large: As for :func:`beam_mesh`.
 
     Returns:
         The path written.
+
+    Raises:
+        ProblemSizeError: Meshing at ``h`` would not fit in memory.
     """
     path = Path(path)
-    ensure_output_dir(path.parent, MPI.COMM_SELF)  # OutputError if the folder cannot be written
-
     _check(h, order)
+    check_mesh_size("beam mesh", VOLUME, h, MPI.COMM_SELF, allow_large)
+    ensure_output_dir(path.parent, MPI.COMM_SELF)  # OutputError if the folder cannot be written
     with gmsh_session() as gmsh:
         _build_beam_model(gmsh, h, order)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)

@@ -27,6 +27,7 @@ from mpi4py import MPI
 from hyperfem.errors import MeshError, ParameterError
 from hyperfem.materials.parameters import is_finite_number
 from hyperfem.io.results import ensure_output_dir
+from hyperfem.mesh.budget import check_mesh_size
 from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
@@ -80,6 +81,16 @@ class FusiformGeometry:
             self.tendon_radius
             + (self.belly_radius - self.tendon_radius) * math.cos(math.pi * z / self.belly_length) ** 2
         )
+
+    @property
+    def volume(self) -> float:
+        r"""Volume of belly and tendons, :math:`\pi L (r_t^2 + r_t b + \tfrac38 b^2) + 2\pi r_t^2 L_t`.
+
+        Here :math:`b = R - r_t`: the mean of :math:`\cos^2` over the belly is :math:`\tfrac12`, of :math:`\cos^4` :math:`\tfrac38`.
+        """
+        rt, b = self.tendon_radius, self.belly_radius - self.tendon_radius
+        belly = math.pi * self.belly_length * (rt**2 + rt * b + 0.375 * b**2)
+        return belly + 2 * math.pi * rt**2 * self.tendon_length
 
     @property
     def total_length(self) -> float:
@@ -148,6 +159,8 @@ def fusiform_mesh(
     geometry: FusiformGeometry | None = None,
     order: int = 1,
     comm: MPI.Comm = MPI.COMM_WORLD,
+    *,
+    allow_large: bool | None = None,
 ) -> Domain:
     """Generate the fusiform muscle in memory (gmsh on rank 0) and distribute it.
 
@@ -156,23 +169,39 @@ def fusiform_mesh(
         geometry: Dimensions (default :class:`FusiformGeometry()`).
         order: Geometric order of the tetrahedra (1 or 2).
         comm: Communicator.
+        allow_large: Mesh even if the estimate exceeds the available memory
+            (:mod:`hyperfem.mesh.budget`); ``None``: the ``HYPERFEM_ALLOW_LARGE`` environment variable.
 
     Returns:
         The distributed :class:`~hyperfem.mesh.Domain`.
+
+    Raises:
+        ProblemSizeError: Meshing at ``h`` would not fit in memory (on every rank).
     """
     _check(h, order)
     geometry = geometry or FusiformGeometry()
+    check_mesh_size("fusiform mesh", geometry.volume, h, comm, allow_large)
     data = distribute_model(comm, lambda gmsh: _build(gmsh, geometry, h, order), 3, "fusiform mesh")
     return domain_from_meshdata(data, f"fusiform_mesh(h={h}, order={order})")
 
 
 def write_fusiform_mesh(
-    path: str | Path, h: float = 0.004, geometry: FusiformGeometry | None = None, order: int = 1
+    path: str | Path,
+    h: float = 0.004,
+    geometry: FusiformGeometry | None = None,
+    order: int = 1,
+    *,
+    allow_large: bool | None = None,
 ) -> Path:
-    """Write the fusiform mesh to a gmsh ``.msh`` (4.1, ASCII) file. Serial; call on one rank."""
+    """Write the fusiform mesh to a gmsh ``.msh`` (4.1, ASCII) file. Serial; call on one rank.
+
+    Raises:
+        ProblemSizeError: Meshing at ``h`` would not fit in memory (``allow_large`` as for :func:`fusiform_mesh`).
+    """
     path = Path(path)
     _check(h, order)
     geometry = geometry or FusiformGeometry()
+    check_mesh_size("fusiform mesh", geometry.volume, h, MPI.COMM_SELF, allow_large)
     ensure_output_dir(path.parent, MPI.COMM_SELF)  # OutputError if the folder cannot be written
 
     with gmsh_session() as gmsh:

@@ -31,6 +31,9 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
+from hyperfem.mesh.budget import check_problem_size
+from hyperfem.mesh.orientation import check_cell_volumes
+from hyperfem.problem.boundary_conditions import DirichletAgreement
 from hyperfem.problem.loads import Load, load_terms
 from hyperfem.problem.quadrature import unify_quadrature
 
@@ -55,6 +58,26 @@ class EnergyProblem:
 
     tangent_correction: ufl.Form | None = None
     """Form whose second variation was added to :attr:`jacobian` only (``None``: the plain derivative)."""
+
+    def _check_domain(self, domain, fields: Sequence[tuple[int, int]], quadrature_degree: int) -> None:
+        """Refuse cells without volume and spaces too large for the machine, before building them (collective).
+
+        Subclasses call it before their function spaces exist. Too large: the
+        estimate of :func:`~hyperfem.mesh.budget.check_problem_size` exceeds the
+        available memory, unless ``HYPERFEM_ALLOW_LARGE=1`` (or
+        :func:`~hyperfem.mesh.budget.allow_large_problems` in effect).
+
+        Args:
+            domain: The mesh.
+            fields: ``(components, degree)`` of each field of the space.
+            quadrature_degree: Degree of the volume rule.
+
+        Raises:
+            MeshError: The mesh has cells without volume (the message ``hyperfem run`` gives).
+            ProblemSizeError: The space would not fit in memory.
+        """
+        check_cell_volumes(domain)
+        check_problem_size(domain, fields, quadrature_degree, type(self).__name__)
 
     def _derive_forms(
         self,
@@ -90,6 +113,19 @@ class EnergyProblem:
                 ufl.derivative(tangent_correction, self.u, test), self.u, trial
             )
         self._time = 0.0
+        imap = self.u.function_space.dofmap.index_map
+        owned = imap.size_local * self.u.function_space.dofmap.index_map_bs
+        x = domain.mesh.geometry.x
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        domain.comm.Allreduce(x.min(axis=0, initial=np.inf), lo, op=MPI.MIN)
+        domain.comm.Allreduce(x.max(axis=0, initial=-np.inf), hi, op=MPI.MAX)
+        self._agreement = DirichletAgreement(
+            self._dirichlet, self.u.x.array.size, owned, domain.comm, length=float(np.linalg.norm(hi - lo))
+        )
+        if self._agreement.pairs:  # boundary values that meet: compare them at the end of a unit ramp too
+            for d in self._dirichlet:
+                d.update(1.0)
+            self._agreement.check(1.0)
         self.set_time(0.0)
 
     @property
@@ -120,6 +156,7 @@ class EnergyProblem:
         self._loads.set(t_loads)
         for d in self._dirichlet:
             d.update(t_bcs)
+        self._agreement.check(t_bcs)
         for updater in self._updaters:
             updater.update(t_loads)
 

@@ -37,6 +37,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import ufl
 from dolfinx import fem
+from dolfinx.mesh import CellType
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import deformation_gradient
@@ -46,6 +47,7 @@ from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDir
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.loads import Load
 from hyperfem.problem.protocol import Updater
+from hyperfem.problem.quadrature import check_volume_quadrature, volume_quadrature_degree
 from hyperfem.problem.validation import check_region_coverage, scalar_energy
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
@@ -53,12 +55,16 @@ __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
 EnergyDensity = Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]
 
 
-def default_quadrature_degree(degree: int) -> int:
-    """Quadrature degree used for displacement degree ``degree``.
+def default_quadrature_degree(degree: int, cell_type: CellType | None = None) -> int:
+    """Quadrature degree used for displacement degree ``degree`` on cells of ``cell_type``.
 
-    P1: one point (F is constant per cell); P2 and higher: ``2 * degree``.
+    Simplices (and ``cell_type=None``): P1 one point (F is constant per
+    cell), P2 and higher ``2 * degree``. Quadrilaterals and hexahedra:
+    ``2 * degree`` for every degree, Q1 included (full Gauss integration; the
+    one-point rule has hourglass modes). See
+    :func:`~hyperfem.problem.quadrature.volume_quadrature_degree`.
     """
-    return 1 if degree == 1 else 2 * degree
+    return volume_quadrature_degree(degree, cell_type)
 
 
 def as_sequence(items, what: str, where: str) -> list:
@@ -80,7 +86,8 @@ class HyperelasticProblem(EnergyProblem):
         loads: External loads (dead and follower).
         degree: Lagrange degree of the displacement.
         quadrature_degree: Quadrature degree; default from
-            :func:`default_quadrature_degree`.
+            :func:`default_quadrature_degree` for the mesh's cell type
+            (on hexahedra and quadrilaterals a degree counts per direction).
         updaters: Objects with ``update(t)`` that :meth:`set_time` calls
             (e.g. :class:`~hyperfem.activation.Activation`); the energies'
             own ``updaters`` are added (each once).
@@ -142,8 +149,10 @@ class HyperelasticProblem(EnergyProblem):
         mesh = domain.mesh
         gdim = domain.gdim
         self.degree = degree
-        self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree)
+        self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree, mesh.topology.cell_type)
+        check_volume_quadrature(degree, self.quadrature_degree, mesh.topology.cell_type, where)
         md = {"quadrature_degree": self.quadrature_degree}
+        self._check_domain(domain, [(gdim, degree)], self.quadrature_degree)  # flat cells, size guard
         self.V = fem.functionspace(mesh, ("Lagrange", degree, (gdim,)))
         self.u = fem.Function(self.V, name="displacement")
         v = ufl.TestFunction(self.V)

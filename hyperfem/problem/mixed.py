@@ -60,6 +60,7 @@ from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDir
 from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.loads import Load
+from hyperfem.problem.quadrature import check_volume_quadrature
 from hyperfem.problem.validation import check_energy_callable, check_region_coverage
 
 __all__ = [
@@ -139,7 +140,8 @@ class MixedHyperelasticProblem(EnergyProblem):
         degree: Displacement degree (default 2).
         pressure_degree: Degree of the pressure and the volume field (default
             ``degree - 1``; Taylor–Hood).
-        quadrature_degree: Default :func:`~hyperfem.problem.default_quadrature_degree` of ``degree``.
+        quadrature_degree: Default :func:`~hyperfem.problem.default_quadrature_degree` of ``degree`` and
+            the cell type (Q2 on hexahedra: 3 × 3 × 3 Gauss points).
         updaters: Objects with ``update(s)`` called by :meth:`set_load_factor`
             (e.g. :class:`~hyperfem.activation.Activation`).
 
@@ -184,8 +186,10 @@ class MixedHyperelasticProblem(EnergyProblem):
         gdim = domain.gdim
         self.degree = degree
         self.pressure_degree = pressure_degree
-        self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree)
+        self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree, mesh.topology.cell_type)
+        check_volume_quadrature(degree, self.quadrature_degree, mesh.topology.cell_type, "MixedHyperelasticProblem")
         md = {"quadrature_degree": self.quadrature_degree}
+        self._check_domain(domain, [(gdim, degree), (1, pressure_degree), (1, pressure_degree)], self.quadrature_degree)
         cell = mesh.basix_cell()
         el_u = basix.ufl.element("Lagrange", cell, degree, shape=(gdim,))
         el_p = basix.ufl.element("Lagrange", cell, pressure_degree)

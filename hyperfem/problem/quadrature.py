@@ -1,5 +1,15 @@
 r"""Quadrature degrees of the terms of a problem, chosen in one place.
 
+* :func:`volume_quadrature_degree` — the volume rule of a degree-:math:`k`
+  Lagrange displacement. On simplices: one point for P1 (:math:`F` is
+  constant per cell), :math:`2k` otherwise. On quadrilaterals and hexahedra
+  (tensor-product cells) a quadrature degree counts per direction (basix's
+  Gauss–Jacobi rule of degree :math:`m` has :math:`\lfloor m/2\rfloor + 1`
+  points per direction) and :math:`F` of :math:`Q_k` is never constant, not
+  even for :math:`Q_1` (and the Jacobian of a trilinear map is not either):
+  the rule is :math:`2k`, the :math:`(k+1)^d` Gauss points of full
+  integration. The one-point rule on :math:`Q_1` has hourglass modes — the
+  tangent is singular and the bend cantilever "converges" to nonsense.
 * :func:`load_quadrature_degree` — a load term is integrated exactly where it
   is polynomial: its degree comes from UFL's estimate of the integrand (after
   algebra lowering, so :math:`\det` and cofactors count as the polynomials
@@ -19,10 +29,67 @@ r"""Quadrature degrees of the terms of a problem, chosen in one place.
 from __future__ import annotations
 
 import ufl
+from dolfinx import mesh as dmesh
 from ufl.algorithms import estimate_total_polynomial_degree
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 
-__all__ = ["load_quadrature_degree", "unify_cell_quadrature", "unify_quadrature"]
+from hyperfem.errors import ParameterError
+
+__all__ = [
+    "SIMPLEX_CELLS",
+    "check_volume_quadrature",
+    "is_simplex",
+    "load_quadrature_degree",
+    "unify_cell_quadrature",
+    "unify_quadrature",
+    "volume_quadrature_degree",
+]
+
+SIMPLEX_CELLS = (dmesh.CellType.interval, dmesh.CellType.triangle, dmesh.CellType.tetrahedron)
+"""Cell types on which a quadrature degree is a total degree and P1 has a constant gradient."""
+
+
+def is_simplex(cell_type: dmesh.CellType | None) -> bool:
+    """Whether ``cell_type`` is an interval, triangle or tetrahedron (``None``: assumed a simplex)."""
+    return cell_type is None or cell_type in SIMPLEX_CELLS
+
+
+def volume_quadrature_degree(degree: int, cell_type: dmesh.CellType | None = None) -> int:
+    """Quadrature degree of the volume rule for Lagrange displacement degree ``degree``.
+
+    Args:
+        degree: Lagrange degree :math:`k` of the displacement.
+        cell_type: The mesh's cell type; ``None`` means a simplex.
+
+    Returns:
+        Simplices: 1 for P1 (one point), ``2 * degree`` otherwise.
+        Quadrilaterals and hexahedra: ``2 * degree`` for every degree
+        (:math:`(k+1)^d` Gauss points; see the module docstring).
+    """
+    if is_simplex(cell_type) and degree == 1:
+        return 1
+    return 2 * degree
+
+
+def check_volume_quadrature(degree: int, quadrature_degree: int, cell_type: dmesh.CellType, where: str) -> None:
+    """Refuse a reduced volume rule on quadrilaterals and hexahedra.
+
+    A Gauss rule of fewer than :math:`k + 1` points per direction on
+    :math:`Q_k` (quadrature degree below :math:`2k`) leaves hourglass modes:
+    the tangent is singular and the answer arbitrary. Simplices are not
+    checked.
+
+    Raises:
+        ParameterError: On a tensor-product cell with ``quadrature_degree < 2 * degree``.
+    """
+    if is_simplex(cell_type) or quadrature_degree >= 2 * degree:
+        return
+    points = quadrature_degree // 2 + 1
+    raise ParameterError(
+        f"{where}: quadrature_degree={quadrature_degree} on {cell_type.name} cells integrates Q{degree} with "
+        f"{points} Gauss point(s) per direction, which leaves hourglass modes (singular tangent); "
+        f"use quadrature_degree >= {2 * degree} (the default)"
+    )
 
 
 def load_quadrature_degree(integrand: ufl.core.expr.Expr, volume_degree: int, cap: int) -> int:

@@ -37,6 +37,12 @@ precision. A vanishing leading coefficient (:math:`d = 0`, triangles,
 end of the final bracket, where :math:`g > 0` was evaluated, so it never
 overshoots. :meth:`StepFilter.max_step` also checks the volume ratios at the
 returned step directly from the determinants.
+
+Quadrilaterals and hexahedra are refused (:func:`exact_filter_applies` is
+``False``): :math:`F` of :math:`Q_1` varies inside the cell, so a cell's volume
+ratio does not bound :math:`J` at its points; there
+:class:`~hyperfem.solver.NewtonSolver` guards by bisection on the minimum
+:math:`J` over the Gauss points of the volume rule.
 """
 
 from __future__ import annotations
