@@ -15,6 +15,10 @@ r"""Never lose a run: checkpoints, restart, and what a killed run leaves on disk
   is opened.
 * A step that fails after all cutbacks leaves a checkpoint of the last
   converged state, named in the error.
+* ``meta.json`` does not grow with the run: the rows (and an output's list of
+  rows) are in one history file per run, each once; a restart from an earlier
+  checkpoint of the same folder reads its rows from it and leaves only the
+  new run's history when the old checkpoints are gone.
 * SIGKILL mid-run (serial subprocess) leaves every completed step in the CSV,
   JSON summary, VTX frames and convergence log, and a checkpoint from which
   the run completes as if it had not been killed.
@@ -42,6 +46,7 @@ from hyperfem import dynamics as dyn
 from hyperfem.problem import SplitEnergy, solid_problem
 from hyperfem.io import CheckpointError, read_functions, read_meta, vtx_steps
 from hyperfem.io.checkpoint import dof_keys
+from hyperfem.io.results import jsonable
 from hyperfem.simulation import (
     VTX,
     Checkpoint,
@@ -373,6 +378,56 @@ def test_failed_step_checkpoints_the_last_converged_state(folder, comm):
     stored.x.array[:] = 0.0
     read_functions(step, {"u": stored}, comm)
     assert np.array_equal(stored.x.array, problem.u.x.array)  # the state the failure left: the last converged one
+
+
+class _Counter:
+    """A recorder that keeps a list of rows (as :class:`~hyperfem.dynamics.Diagnostics` does)."""
+
+    def __init__(self):
+        self.rows: list[dict] = []
+
+    def record(self, step) -> dict:
+        self.rows.append({"recorded": len(self.rows)})
+        return dict(self.rows[-1])
+
+
+def _pulled(comm, folder: Path, keep):
+    problem = hf.HyperelasticProblem(
+        _box(comm, 1), psi, bcs=[hf.Clamp("left")], loads=[hf.DeadTraction("right", (0.0, 0.0, -1e3))]
+    )
+    policy = hf.StepPolicy(increment=0.1, min_increment=0.1, max_increment=0.1)
+    outputs = [Reactions(), Recorder(_Counter()), Checkpoint(folder / "ckpt", every=1, keep=keep)]
+    return Simulation(problem, hf.NewtonSolver(problem), policy, outputs, name="pulled")
+
+
+def _text(rows: list[dict]) -> str:
+    """The JSON text of rows (compares exactly, NaN included)."""
+    return json.dumps(jsonable(rows), default=str)
+
+
+def test_checkpoint_records_do_not_grow_with_the_run(folder, comm):
+    reference = _pulled(comm, folder, keep=None).run()
+    assert reference["steps"] == 10
+    ckpt = folder / "ckpt"
+    comm.Barrier()
+    sizes = [(ckpt / f"step-{k:06d}" / "meta.json").stat().st_size for k in (1, 10)]
+    assert sizes[1] < sizes[0] + 200  # not the rows again: a few digits more at most
+    # every row is in the run's history file once, however many checkpoints name it
+    histories = sorted(ckpt.glob("history-*.jsonl"))
+    assert len(histories) == 1
+    keys = [json.loads(line)["k"] for line in histories[0].read_text().splitlines()]
+    assert keys.count("rows") == 11 and keys.count("outputs/1/rows") == 11  # the Recorder's list, too
+    meta = read_meta(ckpt / "step-000004", comm)
+    assert _text(meta["rows"]) == _text(reference["rows"][:5])
+    assert meta["outputs"][1]["state"]["rows"] == [{"recorded": k} for k in range(5)]
+    # continued from step 4 into the same folder: the same rows, and only the new run's history is left
+    resumed = _pulled(comm, folder, keep=2).run(restart=ckpt / "step-000004")
+    _same_rows(resumed["rows"], reference["rows"])
+    assert _text(read_meta(ckpt, comm)["rows"]) == _text(resumed["rows"])
+    comm.Barrier()
+    left = sorted(ckpt.glob("history-*.jsonl"))
+    assert len(left) == 1 and left != histories
+    assert sorted(p.name for p in ckpt.glob("step-*")) == ["step-000009", "step-000010"]
 
 
 # -- dynamics -----------------------------------------------------------------------------------

@@ -10,6 +10,12 @@ Checks against closed forms and balance laws:
   face is :math:`P_{11}` of the exact state (unit area), the opposite roller
   carries :math:`-P_{11}`, the lateral rollers nothing; components a roller
   does not hold are reported as zero;
+* where two Dirichlet faces hold the same component along their common edge
+  (a homogeneous triaxial stretch of the unit cube, the face x = 1 fully
+  prescribed, rollers on x = 0, y = 0, z = 0, a dead traction on y = 1), the
+  default ``shared="traction"`` gives each face its exact force
+  :math:`P_{ii} A` and the faces add up to the total; the nodal sum gives the
+  face x = 1 the strip :math:`-P_{22} h/2` of its neighbour y = 0;
 * the three-field problem gives the force of :class:`~hyperfem.problem.ReactionForce`;
 * in a dynamic run the supports carry the rate of change of momentum:
   :math:`F = \int\rho\,(a + \alpha v)\,dX` when no other force acts
@@ -118,6 +124,62 @@ def test_rollers_carry_the_homogeneous_stress(comm):
     assert np.abs(expected).max() > 1e-2 * P11
     assert r["x1"].moment == pytest.approx(expected, rel=1e-7, abs=1e-8 * P11)
     assert np.abs(r["total"].force).max() < 1e-8 * P11
+
+
+def _triaxial(l1: float, l2: float) -> tuple[float, float, float]:
+    r""":math:`(P_{11}, P_{22}, \lambda_3)` of neo-Hookean principal stretches with :math:`P_{33} = 0`."""
+    mu, lm = PARAMS.mu, PARAMS.lmbda
+
+    def p(l, k):
+        return mu * l[k] - mu / l[k] + lm * math.log(l[0] * l[1] * l[2]) / l[k]
+
+    l3 = 1.0
+    for _ in range(50):
+        h = 1e-7
+        f = p((l1, l2, l3), 2)
+        l3 -= f / ((p((l1, l2, l3 + h), 2) - f) / h)
+    assert abs(p((l1, l2, l3), 2)) < 1e-6 * mu
+    return p((l1, l2, l3), 0), p((l1, l2, l3), 1), l3
+
+
+def test_faces_sharing_an_edge_get_their_own_traction(comm):
+    n, l1, l2 = 2, 1.2, 1.1
+    P11, P22, l3 = _triaxial(l1, l2)
+    mesh = dmesh.create_unit_cube(comm, n, n, n)
+    faces = {
+        f"{a}{v}": (lambda k, v: lambda x: np.isclose(x[k], v))(k, float(v))
+        for k, a in enumerate("xyz")
+        for v in (0, 1)
+    }
+    domain = hf.Domain.from_locators(mesh, faces)
+    stretch = (l1 - 1.0, l2 - 1.0, l3 - 1.0)
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("z0", [0.0], components=[2]),
+        hf.PrescribedDisplacement("x1", lambda x: np.array(stretch)[:, None] * x),  # all components
+    ]
+    problem = hf.HyperelasticProblem(domain, psi, bcs=bcs, loads=[hf.DeadTraction("y1", (0.0, P22, 0.0))])
+    split, nodal = DirichletReactions(problem), DirichletReactions(problem, shared="nodal")
+    assert split.shared == "traction"  # the default
+    hf.solve_quasistatic(hf.NewtonSolver(problem))
+    r, old = split(), nodal()
+    scale = max(P11, P22)
+    expected = {"x0": [-P11, 0, 0], "x1": [P11, 0, 0], "y0": [0, -P22, 0], "z0": [0, 0, 0], "total": [0, -P22, 0]}
+    for name, force in expected.items():
+        assert r[name].force == pytest.approx(force, abs=1e-8 * scale), name
+    # the faces add up to the total (each shared dof is shared out, not counted twice)
+    assert sum(r[k].force for k in "x0 x1 y0 z0".split()) == pytest.approx(r["total"].force, abs=1e-8 * scale)
+    # x1's uniform traction acts at its current centroid (l1, l2/2, l3/2), moment about the reference one
+    arm = np.array([l1, 0.5 * l2, 0.5 * l3]) - np.array([1.0, 0.5, 0.5])
+    assert r["x1"].moment == pytest.approx(np.cross(arm, [P11, 0.0, 0.0]), abs=1e-8 * scale)
+    assert r["x1"].about == "reference centroid of 'x1'" and r["total"].about == "origin"
+    # the nodal sum: x1 also carries y0's traction on the strip of cells along their edge (area h/2)
+    assert old["x1"].force[1] == pytest.approx(-P22 / (2 * n), rel=1e-8)
+    assert old["y0"].force == pytest.approx(r["y0"].force, abs=1e-8 * scale)  # x1 has no y traction to give
+    assert old["total"].force == pytest.approx(r["total"].force, abs=1e-8 * scale)
+    with pytest.raises(hf.ParameterError, match="shared must be one of traction, nodal, got 'area'"):
+        DirichletReactions(problem, shared="area")
 
 
 def test_unknown_boundary_is_refused(comm):

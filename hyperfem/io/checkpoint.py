@@ -14,6 +14,20 @@ so this is a small format of its own. One checkpoint is a folder::
                                     and "original_cells": the input indices of the owned cells
         rank-0001-of-0002.npz
     <folder>/latest.json            {"path": "step-000012", "step": 12}
+    <folder>/history-<run>.jsonl    the lists that grow with the run (the rows), once for all its checkpoints
+
+**History.** What only grows during a run (the rows of every recorded state,
+an output's list of rows or files) is not repeated in every ``meta.json``: a
+:class:`History` appends the new items to one JSON-lines file per run and
+checkpoint folder, and ``meta.json`` holds ``{"$history": file, "key": ...,
+"count": n}`` in their place; :func:`read_meta` puts the first ``n`` items
+back. So a checkpoint costs the size of the state plus the steps since the
+previous one, and ``meta.json`` keeps its size. Items a later checkpoint
+appended (or a run killed while appending) are ignored by an earlier one.
+A run continued from a checkpoint writes a history file of its own, so the
+checkpoints of the first run stay readable; a history file no kept
+checkpoint names is removed. A list that does not just grow at its end is
+stored in ``meta.json`` as before.
 
 The step folder is first written as ``step-000012.partial`` and renamed when
 complete; ``latest.json`` is replaced atomically after that, so a run killed
@@ -49,7 +63,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Mapping
+import uuid
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import basix
@@ -58,11 +73,12 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from hyperfem.errors import CheckpointError, OutputError
-from hyperfem.io.results import on_rank0, write_json
+from hyperfem.io.results import jsonable, on_rank0, write_json
 
 __all__ = [
     "FORMAT",
     "CheckpointError",
+    "History",
     "dof_keys",
     "owned_values",
     "read_functions",
@@ -72,8 +88,65 @@ __all__ = [
     "write_checkpoint",
 ]
 
-FORMAT = "hyperfem-checkpoint/2"
-"""Format tag stored in ``meta.json``."""
+FORMAT = "hyperfem-checkpoint/3"
+"""Format tag stored in ``meta.json`` (``/3``: growing lists in a :class:`History` file)."""
+
+READABLE = ("hyperfem-checkpoint/2", FORMAT)
+"""Formats :func:`read_meta` reads (``/2``: every list inline)."""
+
+HISTORY_REF = "$history"
+"""Key of a reference to a :class:`History` list in ``meta.json``."""
+
+
+class History:
+    """The lists of a run that only grow (its rows), written once to ``<folder>/history-<run>.jsonl``.
+
+    :meth:`refer` gives the reference that stands for a list in ``meta.json``
+    and queues its items not yet written; :func:`write_checkpoint` appends
+    them before it writes ``meta.json``. One object per run and checkpoint
+    folder (collective to create: rank 0 draws the file name).
+
+    Args:
+        comm: The run's communicator.
+    """
+
+    def __init__(self, comm):
+        token = uuid.uuid4().hex[:12] if comm.rank == 0 else None
+        self.name = f"history-{comm.bcast(token, root=0)}.jsonl"
+        self._written: dict[str, list] = {}  # key -> the items in the file (the same objects as the run's)
+        self._inline: set[str] = set()
+        self._queued: list[str] = []
+
+    def refer(self, key: str, items: Sequence) -> dict | list:
+        """A reference to ``items`` in the file (new items queued), or ``items`` when they do not extend the last ones.
+
+        Args:
+            key: Name of the list (the same list under the same key every time).
+            items: The whole list now; the items already written must be its start.
+        """
+        items = list(items)
+        done = self._written.get(key, [])
+        if key in self._inline or items[: len(done)] != done:  # not a continuation: kept in meta.json
+            self._inline.add(key)
+            return items
+        self._queued.extend(json.dumps({"k": key, "v": jsonable(v)}, default=str) + "\n" for v in items[len(done) :])
+        self._written[key] = items
+        return {HISTORY_REF: self.name, "key": key, "count": len(items)}
+
+    def flush(self, folder: Path, comm) -> None:
+        """Append the queued items to the file (rank 0; collective).
+
+        Raises:
+            OutputError: On every rank, if rank 0 cannot write.
+        """
+        path = Path(folder) / self.name
+
+        def append() -> None:
+            with path.open("a") as fh:
+                fh.write("".join(self._queued))
+
+        on_rank0(comm, append, f"cannot write {path}")
+        self._queued = []
 
 
 def step_folder_name(step: int) -> str:
@@ -180,6 +253,7 @@ def write_checkpoint(
     comm,
     *,
     keep: int | None = 2,
+    history: History | None = None,
 ) -> Path:
     """Write one checkpoint (collective) and make it the latest.
 
@@ -192,6 +266,8 @@ def write_checkpoint(
         comm: Communicator of the functions' mesh.
         keep: Checkpoints to keep (older ``step-*`` folders are removed);
             ``None`` keeps all.
+        history: Where the lists that ``meta`` refers to go (:meth:`History.refer`);
+            its queued items are appended before ``meta.json`` is written.
 
     Returns:
         The step folder.
@@ -233,6 +309,9 @@ def write_checkpoint(
     if error:
         raise OutputError(error)
     record = {**meta, "format": FORMAT, "ranks": comm.size, "step": int(step), "functions": list(functions)}
+    if history is not None:
+        history.flush(folder, comm)
+        record["history"] = history.name
     write_json(partial / "meta.json", record, comm)
 
     def commit() -> None:
@@ -251,9 +330,23 @@ def write_checkpoint(
             for old in done[: max(0, len(done) - keep)]:
                 if old != final:
                     shutil.rmtree(old, ignore_errors=True)
+        _remove_unused_histories(folder, history)
 
     on_rank0(comm, commit, f"cannot write checkpoint {final}")
     return final
+
+
+def _remove_unused_histories(folder: Path, history: History | None) -> None:
+    """Remove the history files that no checkpoint in ``folder`` names (rank 0)."""
+    used = {history.name} if history is not None else set()
+    for meta in folder.glob("step-*/meta.json"):
+        try:
+            used.add(json.loads(meta.read_text()).get("history"))
+        except (OSError, ValueError, AttributeError):
+            return  # an unreadable record: keep every history file
+    for path in folder.glob("history-*.jsonl"):
+        if path.name not in used:
+            path.unlink(missing_ok=True)
 
 
 def resolve_checkpoint(path: str | Path, comm, *, action: str = "restart from") -> Path:
@@ -312,9 +405,11 @@ def read_meta(path: str | Path, comm) -> dict:
     if comm.rank == 0:
         try:
             meta = json.loads((folder / "meta.json").read_text())
-            if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+            if not isinstance(meta, dict) or meta.get("format") not in READABLE:
                 found = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
                 error = f"{folder}: not a {FORMAT} checkpoint (format {found!r})"
+            else:
+                meta = _resolve_history(meta, folder.parent, {})
         except (OSError, ValueError) as exc:
             error = f"{folder}/meta.json cannot be read: {exc}"
     meta, error = comm.bcast((meta, error), root=0)
@@ -322,6 +417,39 @@ def read_meta(path: str | Path, comm) -> dict:
         raise CheckpointError(error)
     meta["path"] = str(folder)
     return meta
+
+
+def _history_items(path: Path) -> dict[str, list]:
+    """Key → items of a history file, in order (an incomplete last line, from a killed run, ends it)."""
+    out: dict[str, list] = {}
+    with path.open() as fh:
+        for line in fh:
+            try:
+                item = json.loads(line)
+            except ValueError:
+                break
+            out.setdefault(item["k"], []).append(item["v"])
+    return out
+
+
+def _resolve_history(value, folder: Path, files: dict):
+    """``value`` with every :data:`HISTORY_REF` reference replaced by its items (``files``: those read)."""
+    if isinstance(value, list):
+        return [_resolve_history(v, folder, files) for v in value]
+    if not isinstance(value, dict):
+        return value
+    if HISTORY_REF not in value:
+        return {k: _resolve_history(v, folder, files) for k, v in value.items()}
+    name, key, count = value[HISTORY_REF], value["key"], int(value["count"])
+    if name not in files:
+        try:
+            files[name] = _history_items(folder / name)
+        except OSError as exc:
+            raise ValueError(f"its history {folder / name} cannot be read: {exc.strerror or exc}") from None
+    items = files[name].get(key, [])
+    if len(items) < count:
+        raise ValueError(f"its history {folder / name} holds {len(items)} of the {count} items of {key!r}")
+    return items[:count]
 
 
 def _rank_files(folder: Path, comm) -> tuple[list[Path], str]:

@@ -14,7 +14,10 @@ stopped:
 * the rows recorded so far and what each output keeps
   (:meth:`~hyperfem.simulation.outputs.Output.state`; on a restart the k-th
   output of a class gets the state of the k-th output of that class, so
-  outputs may be added or removed);
+  outputs may be added or removed); the rows, and the lists in an output's
+  state that only grow, are written once per run to the checkpoint folder's
+  history file (:class:`~hyperfem.io.checkpoint.History`), each checkpoint
+  appending the steps since the last, so ``meta.json`` does not grow with the run;
 * a fingerprint of the run (:func:`fingerprint`): mesh, spaces, ranks, stage
   and a hash of the case description. A restart that does not match raises
   :class:`~hyperfem.io.CheckpointError` naming the first difference.
@@ -47,7 +50,14 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
-from hyperfem.io.checkpoint import CheckpointError, read_functions, read_meta, step_folder_name, write_checkpoint
+from hyperfem.io.checkpoint import (
+    CheckpointError,
+    History,
+    read_functions,
+    read_meta,
+    step_folder_name,
+    write_checkpoint,
+)
 from hyperfem.io.results import ensure_output_dir, jsonable
 from hyperfem.simulation.outputs import Output
 from hyperfem.solver.stepping import StepPolicy, StepRecord
@@ -188,12 +198,31 @@ def _mismatch(stored: dict, current: dict) -> str:
     return ""
 
 
-def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2) -> Path:
+def _output_state(history: History, k: int, state):
+    """An output's state with its list entries referred to ``history`` (those that only grow)."""
+    if not isinstance(state, dict):
+        return state
+    return {
+        key: history.refer(f"outputs/{k}/{key}", value) if isinstance(value, list) else value
+        for key, value in state.items()
+    }
+
+
+def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2, history: History | None = None) -> Path:
     """Write a checkpoint of the accepted state of ``sim`` (collective).
+
+    Args:
+        sim: The simulation.
+        folder: The checkpoint folder.
+        keep: Checkpoints kept (:func:`~hyperfem.io.checkpoint.write_checkpoint`).
+        history: The run's history file (the same object for every checkpoint
+            of a run into ``folder``: each appends only what is new); ``None``
+            writes a new one with every row.
 
     Returns:
         The checkpoint's step folder.
     """
+    history = History(sim.comm) if history is None else history
     meta = {
         "name": sim.name,
         "fingerprint": fingerprint(sim),
@@ -202,10 +231,13 @@ def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2) -> Path:
         "stepper": dataclasses.asdict(sim.stepper),
         "policy": {f.name: getattr(sim.policy, f.name) for f in dataclasses.fields(sim.policy)},
         "wall_time": sim.wall_time,
-        "rows": sim.rows,
-        "outputs": [{"type": type(o).__name__, "state": o.state(sim)} for o in sim.outputs],
+        "rows": history.refer("rows", sim.rows),
+        "outputs": [
+            {"type": type(o).__name__, "state": _output_state(history, k, o.state(sim))}
+            for k, o in enumerate(sim.outputs)
+        ],
     }
-    return write_checkpoint(folder, sim.step, checkpoint_functions(sim), meta, sim.comm, keep=keep)
+    return write_checkpoint(folder, sim.step, checkpoint_functions(sim), meta, sim.comm, keep=keep, history=history)
 
 
 def load_checkpoint(sim, path: str | Path) -> dict:
@@ -268,15 +300,17 @@ class Checkpoint(Output):
         self.last: int | None = None
         self.path: Path | None = None
         self._completed = False
+        self._history: History | None = None
 
     def start(self, sim) -> None:
-        """Check the folder (on every rank) before any solve."""
+        """Check the folder (on every rank) before any solve; a history file for this run."""
         ensure_output_dir(self.folder, sim.comm)
         sim.files["checkpoint"] = str(self.folder)
         self.last = 0
+        self._history = History(sim.comm)
 
     def _save(self, sim) -> None:
-        self.path = save_checkpoint(sim, self.folder, keep=self.keep)
+        self.path = save_checkpoint(sim, self.folder, keep=self.keep, history=self._history)
         self.last, self._completed = sim.step, sim.completed
         sim.files["checkpoint"] = str(self.path)
 
