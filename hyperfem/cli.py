@@ -119,7 +119,15 @@ def run(main: Callable[[], object]) -> None:
     except HyperfemError as exc:
         if comm.rank == 0:
             print(f"hyperfem: error: {exc}", file=sys.stderr, flush=True)
-        sys.exit(1)
+        sys.exit(getattr(exc, "exit_code", 1))
+    except KeyboardInterrupt:
+        # A second Ctrl-C (or one outside a run): stop now. Abort, so that no rank waits in a
+        # collective call for this one.
+        if comm.rank == 0:
+            print("hyperfem: interrupted", file=sys.stderr, flush=True)
+        if comm.size > 1:
+            comm.Abort(130)
+        sys.exit(130)
     except Exception:
         if comm.size == 1:
             raise

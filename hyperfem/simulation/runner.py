@@ -31,6 +31,7 @@ summary and files continue those of the first run.
 
 from __future__ import annotations
 
+import signal
 import time as _time
 from collections.abc import Sequence
 from pathlib import Path
@@ -39,9 +40,10 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from hyperfem.errors import ConvergenceError
+from hyperfem.errors import ConvergenceError, Interrupted
 from hyperfem.mesh.quality import MeshQuality, mesh_quality
 from hyperfem.simulation import checkpoint as _checkpoint
+from hyperfem.simulation.interrupt import InterruptGuard
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
 
@@ -260,7 +262,9 @@ class Simulation:
             self.mesh_quality = mesh_quality(self.fields.base.domain)
             self.mesh_quality.warn_if_poor()
         started = []
+        self._guard = InterruptGuard(self.comm)
         try:
+            self._guard.__enter__()
             for output in self.outputs:
                 output.start(self)
                 started.append(output)
@@ -281,19 +285,42 @@ class Simulation:
             self.error = str(exc)
             self.state_converged = bool(self.rows)
             self._close(started)
-            where = []
-            if "summary" in self.files:
-                where.append(f"completed steps written to {self.files['summary']}")
-            if "checkpoint" in self.files and Path(self.files["checkpoint"]).name.startswith("step-"):
-                where.append(f"last converged state checkpointed in {self.files['checkpoint']}")
-            detail = f" ({'; '.join(where)})" if where else ""
+            detail = self._kept("last converged state checkpointed in")
             raise ConvergenceError(f"{self.name}: {exc}{detail}", exc.time, exc.history) from exc
+        except Interrupted as exc:
+            self.error = str(exc)
+            self.state_converged = True
+            self._close(started)
+            detail = self._kept("continue with --restart from")
+            if "checkpoint" not in self.files:
+                detail += " (no checkpoint output: the run cannot be continued)"
+            raise Interrupted(f"{self.name}: {exc}{detail}", exc.time) from None
         except Exception as exc:
             self.error = f"{type(exc).__name__}: {exc}"
             raise
         finally:
+            self._guard.__exit__(None, None, None)
             self._close(started)
         return self.summary()
+
+    def _kept(self, checkpoint_words: str) -> str:
+        """`` (completed steps written to ...; <checkpoint_words> CHECKPOINT)`` for the message of a stopped run."""
+        where = []
+        if "summary" in self.files:
+            where.append(f"completed steps written to {self.files['summary']}")
+        if "checkpoint" in self.files and Path(self.files["checkpoint"]).name.startswith("step-"):
+            where.append(f"{checkpoint_words} {self.files['checkpoint']}")
+        return f" ({'; '.join(where)})" if where else ""
+
+    def _check_interrupt(self) -> None:
+        """Raise :class:`~hyperfem.errors.Interrupted` on every rank if any rank was signalled (collective)."""
+        guard = getattr(self, "_guard", None)
+        if guard is None:
+            return
+        signum = guard.requested()
+        if signum:
+            what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
+            raise Interrupted(f"{what} after step {self.step}, t = {self.time:g}", self.time)
 
     def _close(self, started: list) -> None:
         """Stop the clock and close the outputs still open (in order; each once)."""
@@ -331,6 +358,7 @@ class Simulation:
         self.rows.append(row)
         for output in self.outputs:
             output.write(self, record)
+        self._check_interrupt()
 
     # -- summary ---------------------------------------------------------------------
     def summary(self, rows: bool = True) -> dict:
