@@ -48,7 +48,6 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import json  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402
@@ -65,6 +64,7 @@ from hyperfem.cli import (  # noqa: E402
     unit_interval,
 )
 from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.simulation import VTX, CSVLog, Derived, JSONSummary, Progress, Recorder, Simulation  # noqa: E402
 
 SCHEMES = {
@@ -81,8 +81,9 @@ def parse(argv=None):
     p.add_argument("--t-end", type=positive_float, default=3.0, help="simulated time (s)")
     p.add_argument("--dt", type=positive_float, default=0.02, help="initial time step (s)")
     p.add_argument("--dt-max", type=positive_float, default=None, help="largest time step (s)")
-    p.add_argument("--h", type=positive_float, default=1.0, help="element size of the beam mesh (m)")
-    p.add_argument("--mesh", type=Path, default=None, help="read this gmsh beam mesh instead of generating one")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--h", type=positive_float, default=1.0, help="element size of the generated beam mesh (m)")
+    where.add_argument("--mesh", type=Path, default=None, help="read this gmsh beam mesh instead of generating one")
     p.add_argument("--degree", type=positive_int, default=1, help="displacement degree")
     p.add_argument("--scheme", choices=sorted(SCHEMES), default="newmark")
     p.add_argument("--rho-inf", type=unit_interval, default=0.8, help="generalized-alpha spectral radius in [0, 1]")
@@ -148,11 +149,13 @@ def main(argv=None) -> dict:
 
     def line(row: dict) -> str:
         return (
-            f"t = {row['time']:.4f} dt = {row['dt']:.4g} its = {row['newton_iterations']} "
-            f"K = {row['kinetic_energy']:.4g} Psi = {row['elastic_energy']:.4g} "
-            f"minJ = {row['min_J']:.3f} x_p = ({row['p0_x']:.3f}, {row['p0_y']:.3f}, {row['p0_z']:.3f})"
+            f"t = {row['time']:.4f} s  dt = {row['dt']:.4g} s  its = {row['newton_iterations']}  "
+            f"K = {row['kinetic_energy']:.4g} J  Psi = {row['elastic_energy']:.4g} J  "
+            f"minJ = {row['min_J']:.3f}  x_p = ({row['p0_x']:.3f}, {row['p0_y']:.3f}, {row['p0_z']:.3f}) m"
         )
 
+    files = [out / "diagnostics.csv", out / "summary.json"] + ([] if args.no_vtx else [out / "displacement.bp"])
+    note_overwrite(files, comm)  # the default folder is reused: say what a second run replaces
     outputs = [
         Recorder(diagnostics),
         Derived("final_test_point", lambda s: [diagnostics.rows[-1][f"p0_{a}"] for a in "xyz"]),
@@ -193,9 +196,32 @@ def main(argv=None) -> dict:
             print(f"stopped: {exc}", flush=True)
     summary = sim.summary(rows=False)
     if comm.rank == 0 and not args.quiet:
-        shown = {k: v for k, v in summary.items() if k not in ("newton_iterations", "petsc_options")}
-        print(json.dumps(shown, indent=2, default=str))
+        print(summary_table(summary, diagnostics.rows, scheme.name, files), flush=True)
     return summary
+
+
+def summary_table(summary: dict, rows: list[dict], scheme: str, files: list[Path]) -> str:
+    """A few lines on the run (the whole summary is in ``summary.json``)."""
+    first, last = rows[0], rows[-1]
+    total0, total = first["total_energy"], last["total_energy"]
+    scale = max(abs(r["kinetic_energy"]) + abs(r["elastic_energy"]) for r in (first, last)) or 1.0
+    state = "completed" if summary["completed"] else f"stopped at t = {summary['time']:g} s"
+    lines = [
+        f"{summary['name']}: {summary['dofs']} dofs, {summary['cells']} cells, {summary['ranks']} rank(s), {scheme}",
+        f"  {state}: {summary['steps']} time steps ({summary['rejected']} rejected), "
+        f"{summary['total_newton_iterations']} Newton iterations, {summary['wall_time']:.2f} s",
+        f"  {'':<10}{'t [s]':>10}{'K [J]':>12}{'Psi [J]':>12}{'total [J]':>12}{'min J':>8}   test point x_p [m]",
+    ]
+    for label, row in (("start", first), ("end", last)):
+        point = ", ".join(f"{row[f'p0_{a}']:.4f}" for a in "xyz")
+        lines.append(
+            f"  {label:<10}{row['time']:>10.4g}{row['kinetic_energy']:>12.4g}{row['elastic_energy']:>12.4g}"
+            f"{row['total_energy']:>12.4g}{row['min_J']:>8.3f}   ({point})"
+        )
+    lines.append(f"  energy drift (total = kinetic + elastic - external work): {(total - total0) / scale:+.2e} "
+                 "of K + Psi")
+    lines.append(f"  output: {', '.join(f'{p} (ParaView)' if p.suffix == '.bp' else str(p) for p in files)}")
+    return "\n".join(lines)
 
 
 # %% [markdown]

@@ -62,6 +62,7 @@ from hyperfem.cases.cantilever import bend_load, twist_load  # noqa: E402
 from hyperfem.cases.cantilever_dynamics import TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.mesh.beam import LENGTH  # noqa: E402
 
 END_ROTATION = {"bc-bend": ((0.0, 1.0, 0.0), math.pi / 2), "bc-twist": ((1.0, 0.0, 0.0), 2 * math.pi)}
@@ -298,6 +299,8 @@ def main(argv=None) -> dict:
     out = ensure_output_dir(args.output, comm)
     domain = hf.read_mesh(args.mesh, comm)
     methods = args.methods or available_methods()
+    files = [out / f"{args.case}_{method}.csv" for method in methods] + [out / f"{args.case}.json"]
+    note_overwrite(files, comm)
     results = {}
     for method in methods:
         dt = args.dt_implicit if method in IMPLICIT else args.dt
@@ -324,6 +327,8 @@ def main(argv=None) -> dict:
     summary = {"case": args.case, "mesh": str(args.mesh), "ranks": comm.size, "methods": results}
     if comm.rank == 0:
         (out / f"{args.case}.json").write_text(json.dumps(summary, indent=2, default=str))
+        if not args.quiet:
+            print(f"output: {', '.join(str(p) for p in files)}", flush=True)
     return summary
 
 

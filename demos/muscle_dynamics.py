@@ -71,6 +71,7 @@ from hyperfem.cases.muscle import MUSCLE_DENSITY, muscle_problem  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
 from hyperfem.io import VTXOutput, ensure_output_dir, write_json  # noqa: E402
+from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.mesh.fusiform import FusiformGeometry, fusiform_mesh  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -85,8 +86,9 @@ SCHEMES = {
 
 def parse(argv=None):
     p = ArgumentParser(description="A fusiform muscle contracting with inertia (three-field, backward Euler)")
-    p.add_argument("--mesh", type=Path, default=MESH, help="fusiform .msh (default: the committed h = 8 mm mesh)")
-    p.add_argument("--h", type=positive_float, default=None, help="generate a mesh of this element size (m) instead")
+    where = p.add_mutually_exclusive_group()  # a --mesh given is always read (a missing file is an error)
+    where.add_argument("--mesh", type=Path, default=MESH, help="fusiform .msh (default: the committed h = 8 mm mesh)")
+    where.add_argument("--h", type=positive_float, default=None, help="generate a mesh of this element size (m) instead")
     p.add_argument("--rho", type=positive_float, default=MUSCLE_DENSITY, help="density (kg/m^3)")
     p.add_argument("--ramp", type=positive_float, default=0.02, help="activation ramp time T_a (s)")
     p.add_argument("--dt", type=positive_float, default=0.002, help="time step (s)")
@@ -190,6 +192,8 @@ def main(argv=None) -> dict:
     comm = MPI.COMM_WORLD
     start = time.perf_counter()
     out = ensure_output_dir(args.output, comm)  # collective: fail on every rank before any work
+    files = [out / "diagnostics.csv", out / "muscle_dynamics.json", *([] if args.no_vtx else [out / "displacement.bp"])]
+    note_overwrite(files, comm)
     domain = (
         fusiform_mesh(h=args.h, geometry=FusiformGeometry(), comm=comm) if args.h else hf.read_mesh(args.mesh, comm)
     )
@@ -247,6 +251,8 @@ def main(argv=None) -> dict:
             + f"{summary['wall_time']:.1f} s",
             flush=True,
         )
+    if comm.rank == 0 and not args.quiet:
+        print(f"output: {', '.join(f'{p} (ParaView)' if p.suffix == '.bp' else str(p) for p in files)}", flush=True)
     return summary
 
 

@@ -12,9 +12,11 @@
 # `python demos/plot_dynamics.py output/dynamics/bend/diagnostics.csv -o bend.png`
 
 # %%
-import argparse
 from pathlib import Path
 
+from mpi4py import MPI  # noqa: F401 - before dolfinx (imported by the plots module)
+
+from hyperfem.cli import ArgumentParser
 from hyperfem.simulation.plots import dynamics_time_series, read_rows
 
 
@@ -25,15 +27,17 @@ def read(path: Path) -> dict[str, list[float]]:
 
 
 def main(argv=None) -> Path:
-    p = argparse.ArgumentParser(description="Plot motion curve and energies of dynamics runs")
+    p = ArgumentParser(description="Plot motion curve and energies of dynamics runs")
     p.add_argument("csv", type=Path, nargs="+", help="diagnostics.csv file(s)")
     p.add_argument("-o", "--output", type=Path, default=None, help="PNG file (default: next to the first CSV)")
     args = p.parse_args(argv)
     out = dynamics_time_series(args.csv, output=args.output)
-    print(out)
+    print(f"wrote {out}", flush=True)
     return out
 
 
 # %%
 if __name__ == "__main__":
-    main()
+    from hyperfem.cli import run
+
+    run(main)  # a missing or empty CSV: one line "hyperfem: error: ..." and exit status 1

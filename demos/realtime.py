@@ -95,8 +95,9 @@ def dragged_surface(boundary: str, path) -> list[hf.PrescribedDisplacement]:
 
 def parse(argv=None):
     p = ArgumentParser(description="Real-time stepping: a beam's end dragged along a circle (seed 000)")
-    p.add_argument("--mesh", type=Path, default=None, help="gmsh beam mesh (physical groups clamped, free_end)")
-    p.add_argument("--h", type=positive_float, default=1.0, help="element size of the generated beam (m)")
+    where = p.add_mutually_exclusive_group()  # a --mesh given is always read (a missing file is an error)
+    where.add_argument("--mesh", type=Path, default=None, help="gmsh beam mesh (physical groups clamped, free_end)")
+    where.add_argument("--h", type=positive_float, default=1.0, help="element size of the generated beam (m)")
     p.add_argument("--steps", type=positive_int, default=60, help="time steps (frames)")
     p.add_argument("--dt", type=positive_float, default=1.0 / 30.0, help="time step = frame time (s)")
     p.add_argument("--budget", type=positive_int, default=2, help="Newton iterations per step")
@@ -142,7 +143,7 @@ def main(argv=None) -> dict:
         rec = stepper.step()
         if comm.rank == 0 and not args.quiet and rec.step % 10 == 0:
             print(
-                f"t = {rec.time:.3f}  its = {rec.iterations}  |r|/|r0| = {rec.relative_residual:.2e}  "
+                f"t = {rec.time:.3f} s  its = {rec.iterations}  |r|/|r0| = {rec.relative_residual:.2e}  "
                 f"step {1e3 * rec.wall_time:.1f} ms",
                 flush=True,
             )
@@ -173,8 +174,12 @@ def main(argv=None) -> dict:
             f"max {stats.relative_residual_max:.2e}; {stats.unconverged} of {stats.steps} steps ended on the budget",
             flush=True,
         )
-    if out is not None and comm.rank == 0:
-        (out / "realtime.json").write_text(json.dumps(summary, indent=2))
+    if comm.rank == 0:
+        if out is not None:
+            (out / "realtime.json").write_text(json.dumps(summary, indent=2))
+        if not args.quiet:
+            where = out / "realtime.json" if out is not None else "none (give --output DIR for a JSON summary)"
+            print(f"output: {where}", flush=True)
     return summary
 
 

@@ -36,6 +36,7 @@ import hyperfem as hf  # noqa: E402
 from hyperfem.cases import TEST_POINT, CantileverSpec, twist_load, convergence_note, mesh_size_of  # noqa: E402
 from hyperfem.cli import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
 from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.simulation import VTX, Derived, JSONSummary, Probe, Simulation, format_summary  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,8 +45,9 @@ DEFAULT_MESH = ROOT / "meshes" / "beam_h1.msh"
 
 def parse(argv=None):
     p = ArgumentParser(description="Cantilever twist with a follower traction (seed 003, §5.7)")
-    p.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="gmsh .msh file")
-    p.add_argument("--h", type=positive_float, default=None, help="generate the beam with element size h instead")
+    where = p.add_mutually_exclusive_group()  # a --mesh given is always read (a missing file is an error)
+    where.add_argument("--mesh", type=Path, default=DEFAULT_MESH, help="gmsh .msh file")
+    where.add_argument("--h", type=positive_float, default=None, help="generate the beam with element size h instead")
     p.add_argument("--degree", type=positive_int, default=2, help="displacement degree (P1 locks in bending)")
     p.add_argument("--increment", type=fraction, default=1.0, help="initial load increment, in (0, 1]")
     p.add_argument("--output", type=Path, default=Path("output"), help="output folder")
@@ -63,6 +65,7 @@ def main(argv=None) -> dict:
     args = parse(argv)
     comm = MPI.COMM_WORLD
     ensure_output_dir(args.output, comm)  # fail on every rank before any work
+    note_overwrite([args.output / "twist.bp", args.output / "twist.json"], comm)
     domain = hf.beam_mesh(h=args.h, comm=comm) if args.h else hf.read_mesh(args.mesh, comm)
     spec = CantileverSpec()
     params = spec.lame

@@ -347,6 +347,9 @@ def test_restart_through_the_command(tmp_path):
     part = json.loads((tmp_path / "part" / "bend.json").read_text())
     assert part["steps"] == full["steps"] == 4
     np.testing.assert_allclose(part["probe_displacement"], full["probe_displacement"], rtol=1e-10, atol=1e-14)
+    # The summary names both parts of the ParaView series, in order (before: only the continuation file).
+    first, second = tmp_path / "part" / "bend.bp", tmp_path / "part" / "bend.restart-000002.bp"
+    assert f"{first} (ParaView), {second} (ParaView)" in again.stdout
 
 
 def test_fields_in_xdmf(shared_tmp):
@@ -357,3 +360,69 @@ def test_fields_in_xdmf(shared_tmp):
     assert summary["completed"]
     assert (shared_tmp / "bend.xdmf").is_file() and (shared_tmp / "bend.h5").is_file()
     assert not (shared_tmp / "bend.checkpoint").exists()
+
+
+# -- what a newcomer sees (issue 17) ------------------------------------------------------------------
+@pytest.mark.serial
+def test_print_python_names_the_mesh_relative_to_the_case_and_runs_from_any_folder(tmp_path):
+    """``--print-python``: the mesh as the case file gives it (``case_dir / '../meshes/...'``), runnable anywhere."""
+    printed = hyperfem("run", str(CASES / "bend.toml"), "--set", "problem.degree=1", "--set",
+                       "mesh.file=../meshes/beam_h2.msh", "--output", str(tmp_path / "py"), "--print-python")
+    assert printed.returncode == 0, printed.stderr
+    assert f"case_dir = Path({str(CASES)!r})" in printed.stdout
+    assert "hf.read_mesh(case_dir / '../meshes/beam_h2.msh', comm)" in printed.stdout
+    assert str(MESH) not in printed.stdout  # before: the absolute mesh path
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "bend.py").write_text(printed.stdout)
+    ran = subprocess.run([sys.executable, "bend.py"], capture_output=True, text=True, timeout=240, env=_env(),
+                         cwd=elsewhere)
+    assert ran.returncode == 0, ran.stderr
+    python = json.loads((tmp_path / "py" / "bend.json").read_text())
+    np.testing.assert_allclose(python["probe_displacement"][0], BEND_P1_H2, rtol=1e-6)
+
+
+def test_convert_names_tags(shared_tmp, capsys):
+    """A .vtu keeps tags but not names: --names gives them; tags left unnamed are listed in a note."""
+    import meshio
+
+    source = shared_tmp / "beam.vtu"
+    if MPI.COMM_WORLD.rank == 0:
+        meshio.write(source, meshio.read(MESH))
+    MPI.COMM_WORLD.Barrier()
+    target = shared_tmp / "named.msh"
+    dispatch(["convert", str(source), str(target), "--names", "region:1=beam,1=clamped,2=free_end"])
+    out = capsys.readouterr().out
+    cells, boundaries = _groups(target)
+    assert cells == {"beam": 164} and boundaries == ["boundary_3", "clamped", "free_end"]
+    if MPI.COMM_WORLD.rank == 0:
+        assert ("note: no names for boundary 3 (kept as boundary_3); name them with --names TAG=NAME,...") in out
+    with pytest.raises(hf.ParameterError, match=r"has no region or boundary with tag 7 \(region tags: 1; boundary "
+                       r"tags: 1, 2, 3\)"):
+        dispatch(["convert", str(source), str(target), "--names", "7=x"])
+    with pytest.raises(hf.ParameterError, match="'1beam' is not TAG=NAME"):
+        dispatch(["convert", str(source), str(target), "--names", "1beam"])
+
+
+def test_plot_of_a_dynamic_run_labels_quantities(shared_tmp):
+    """``hyperfem plot`` of a CLI dynamic run: the test point from the probe, displacement/reaction against time."""
+    from hyperfem.simulation import plots
+
+    case = load_case(CASES / "dynamics_bend.toml", ["stepping.t_end=0.15", "output.fields=[]", "output.progress=false"],
+                     output=shared_tmp)
+    build(case).simulation.run()
+    dispatch(["plot", str(shared_tmp)])
+    if MPI.COMM_WORLD.rank == 0:
+        for name in ("dynamics_bend_dynamics.png", "dynamics_bend_history.png", "dynamics_bend_convergence_newton.png"):
+            assert (shared_tmp / name).stat().st_size > 1000
+        assert not (shared_tmp / "run_dynamics.png").exists() and not list(shared_tmp.glob("*load_displacement*"))
+        rows = plots.read_rows(shared_tmp)
+        d = {k: [r[k] for r in rows] for k in rows[0]}
+        meta = json.loads((shared_tmp / "dynamics_bend.json").read_text())
+        shown, label = plots._test_point(d, meta)  # before: p0_* only, an empty panel for a CLI run
+        assert [c for c, _ in shown] == [f"probe_displacement_0_{i}" for i in range(3)]
+        assert label == "test point displacement at (4.5, 1.5, 1.5) [m]"
+        assert plots.quantity("probe_displacement_0_1", meta) == "displacement u_y at (4.5, 1.5, 1.5) [m]"
+        assert plots.quantity("reaction_clamped_Fy", meta) == "reaction force F_y on 'clamped' [N]"
+        assert plots.quantity("time", meta) == "time t [s]"
+        assert plots.quantity("time", {"stage": "quasi-static"}) == "load factor"

@@ -253,3 +253,59 @@ def test_convert_refuses_on_two_ranks(bad_meshes, tmp_path):
     result = hyperfem("convert", str(bad_meshes / "mixed.vtu"), str(tmp_path / "x.msh"), ranks=2, timeout=180)
     message = _one_error(result)
     assert "mixed cell types" in message
+
+
+@pytest.mark.parametrize(
+    "times, expected",
+    [
+        ("[-1, 7]", "output.times[0]: -1 is outside the run's load-factor span [0, 1] (stepping.end)"),
+        ("[0.5, 7]", "output.times[1]: 7 is outside the run's load-factor span [0, 1] (stepping.end)"),
+    ],
+)
+def test_output_times_outside_the_run(times, expected, tmp_path):
+    """Times no step reaches are refused with the key path (before: exit 0 and a .bp holding t = 0 only)."""
+    path = tmp_path / "case.toml"
+    path.write_text(BASE + f"\n[output]\ntimes = {times}\n")
+    message = _one_error(hyperfem("run", str(path), "--output", str(tmp_path / "out")))
+    assert message == f"{path}: {expected}; no frame would be written there"
+
+
+def test_output_every_longer_than_the_run_writes_the_final_state(tmp_path):
+    """every = 5 on a ramp to 1 in 2 steps: the .bp holds t = 0 and the final state, and a warning says so."""
+    from mpi4py import MPI  # noqa: F401
+
+    from hyperfem.io import vtx_steps
+
+    path = tmp_path / "case.toml"
+    path.write_text(BASE + "\n[stepping]\nincrement = 0.5\nmax_increment = 0.5\n[output]\nevery = 5\n"
+                    "progress = false\n")
+    result = hyperfem("run", str(path), "--output", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    assert ("hyperfem: warning: output.every: 5 is longer than the run's load-factor span [0, 1] (stepping.end); "
+            "the field file gets the initial and the final state only") in result.stderr
+    assert vtx_steps(tmp_path / "out" / "case.bp") == 2  # before: 1 (t = 0 only)
+    summary = json.loads((tmp_path / "out" / "case.json").read_text())
+    assert summary["steps"] == 2
+
+
+def test_run_refuses_a_folder_with_a_previous_run(tmp_path):
+    """A second run into the same folder is refused unless --overwrite (before: silently overwritten)."""
+    path = tmp_path / "case.toml"
+    path.write_text(BASE + "\n[output]\nprogress = false\nfields = []\n")
+    out = tmp_path / "out"
+    assert hyperfem("run", str(path), "--output", str(out)).returncode == 0
+    message = _one_error(hyperfem("run", str(path), "--output", str(out)))
+    assert message == (f"run: {out} holds a previous run (case.json); give --overwrite to replace it, --restart to "
+                       "continue it, or another --output")
+    again = hyperfem("run", str(path), "--output", str(out), "--overwrite")
+    assert again.returncode == 0, again.stderr
+    assert f"overwriting the previous run in {out} (case.json)" in again.stdout
+
+
+def test_run_refuses_a_previous_run_on_two_ranks(tmp_path):
+    path = tmp_path / "case.toml"
+    path.write_text(BASE + "\n[output]\nprogress = false\nfields = []\n")
+    out = tmp_path / "out"
+    assert hyperfem("run", str(path), "--output", str(out)).returncode == 0
+    message = _one_error(hyperfem("run", str(path), "--output", str(out), ranks=2, timeout=180))
+    assert message.startswith(f"run: {out} holds a previous run (case.json)")

@@ -121,3 +121,54 @@ def test_methods_demo(shared_tmp):
     assert m["FVM"]["dt_crit"] == pytest.approx(0.012896, rel=1e-3)  # h_min / c on beam_h2 (lumped mass)
     MPI.COMM_WORLD.Barrier()  # rank 0 writes the summary
     assert (shared_tmp / "bend.json").exists()
+
+
+def _exit_status(name: str, argv: list[str], capsys) -> tuple[int, str]:
+    """Run a demo as ``python demos/NAME.py ARGV`` does (through hyperfem.cli.run); status and stderr."""
+    from hyperfem.cli import run
+
+    module = load_demo(name)
+    with pytest.raises(SystemExit) as exit_info:
+        run(lambda: module.main(argv))
+    return exit_info.value.code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "name, argv, status, message",
+    [
+        ("muscle", ["--steps", "0"], 2, "argument --steps: must be an integer >= 1, got '0'"),  # before: ZeroDivision
+        ("bend", ["--mesh", "missing.msh", "--h", "1"], 2, "argument --h: not allowed with argument --mesh"),
+        ("muscle", ["--mesh", "missing.msh", "--h", "0.004"], 2, "argument --h: not allowed with argument --mesh"),
+        ("muscle_dynamics", ["--mesh", "missing.msh", "--h", "0.008"], 2, "not allowed with argument --mesh"),
+        ("plot_dynamics", ["missing.csv"], 1, "hyperfem: error: cannot read missing.csv"),  # before: a traceback
+    ],
+)
+def test_demo_refuses_bad_arguments_in_one_line(name, argv, status, message, capsys):
+    code, err = _exit_status(name, argv, capsys)
+    assert code == status
+    if MPI.COMM_WORLD.rank == 0:
+        assert message in err and "Traceback" not in err
+
+
+def test_demo_says_it_overwrites_and_where_its_files_are(shared_tmp, capsys):
+    argv = ["--mesh", str(DEMOS.parent / "meshes" / "beam_h2.msh"), "--degree", "1", "--output", str(shared_tmp)]
+    bend = load_demo("bend")
+    bend.main(argv)
+    first = capsys.readouterr().out
+    bend.main(argv)
+    second = capsys.readouterr().out
+    if MPI.COMM_WORLD.rank == 0:
+        assert "overwriting" not in first and f"{shared_tmp / 'bend.bp'} (ParaView)" in first
+        assert f"overwriting {shared_tmp / 'bend.bp'}, {shared_tmp / 'bend.json'} (the output of a previous run)" in second
+
+
+def test_dynamics_demo_prints_a_short_table(shared_tmp, capsys):
+    """Not the 80-line JSON dump: a few lines with the energies and where the files are."""
+    argv = ["--case", "bend", "--h", "2", "--t-end", "0.04", "--dt", "0.02", "--fixed", "--no-vtx",
+            "--output", str(shared_tmp)]
+    load_demo("dynamics").main(argv)
+    out = capsys.readouterr().out
+    if MPI.COMM_WORLD.rank == 0:
+        assert "{" not in out and len(out.splitlines()) <= 10
+        assert "energy drift (total = kinetic + elastic - external work)" in out
+        assert f"output: {shared_tmp / 'bend' / 'diagnostics.csv'}, {shared_tmp / 'bend' / 'summary.json'}" in out

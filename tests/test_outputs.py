@@ -255,3 +255,30 @@ def test_killed_dynamics_demo_keeps_every_completed_step(folder):
         sys.path.pop(0)
     png = plot_dynamics.main([str(csv_file), "-o", str(folder / "killed.png")])
     assert png.stat().st_size > 1000
+
+
+def test_format_summary_names_every_part_of_a_restarted_series():
+    """After a restart the output line names NAME.bp and NAME.restart-NNNNNN.bp, in order (before: the second only)."""
+    from hyperfem.simulation import format_summary
+
+    summary = {
+        "name": "bend", "dofs": 10, "cells": 2, "ranks": 1, "stage": "quasi-static", "steps": 4,
+        "newton_iterations": [3, 3], "wall_time": 0.1, "restarted_from": "out/bend.checkpoint/step-000002",
+        "files": {"summary": "out/bend.json", "vtx": "out/bend.restart-000002.bp"},
+        "vtx_parts": ["out/bend.bp", "out/bend.restart-000002.bp"],
+    }
+    line = format_summary(summary).splitlines()[-1]
+    assert line == "  output: out/bend.json, out/bend.bp (ParaView), out/bend.restart-000002.bp (ParaView)"
+
+
+def test_progress_line_has_units():
+    from hyperfem.app.report import progress_line
+
+    row = {"step": 1, "time": 0.05, "dt": 0.05, "newton_iterations": 3, "residual": 1e-9, "min_J": 0.99,
+           "reaction_clamped_Fx": 1.0, "reaction_clamped_Fy": 2.0, "reaction_clamped_Fz": 3.0,
+           "probe_displacement": [[0.1, 0.2, 0.3]]}
+    static = progress_line(row)
+    assert "load factor 0.05" in static and "F[clamped] = (1, 2, 3) N" in static
+    assert "u(probe 0) = (0.1, 0.2, 0.3) m" in static
+    dynamic = progress_line({**row, "kinetic_energy": 5.0})
+    assert "t = 0.05 s" in dynamic and "dt = 0.05 s" in dynamic and "K = 5 J" in dynamic

@@ -196,5 +196,8 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) ->
 def build_domain(case: Case, comm: MPI.Comm = MPI.COMM_WORLD):
     """Only the mesh of ``case`` (its ``domain`` statement; collective), e.g. to check the case."""
     statements = plan(case)
-    (statement,) = [s for s in statements if s.target == "domain"]
-    return _run(statement, _namespace(statements, case, comm), case)
+    namespace = _namespace(statements, case, comm)
+    for statement in statements:  # the domain and what it refers to (the case folder)
+        if statement.target in ("case_dir", "domain"):
+            namespace[statement.target] = _run(statement, namespace, case)
+    return namespace["domain"]

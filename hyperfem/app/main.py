@@ -2,7 +2,7 @@
 
 .. code-block:: text
 
-    hyperfem run CASE.toml [--output DIR] [--set KEY=VALUE ...] [--print-python]
+    hyperfem run CASE.toml [--output DIR] [--set KEY=VALUE ...] [--print-python] [--overwrite] [--restart]
     hyperfem check CASE.toml [--set KEY=VALUE ...]
     hyperfem schema
     hyperfem demo [NAME [ARGS ...]]
@@ -11,7 +11,7 @@
     hyperfem mesh-quality MESH.msh [--png OUT.png] [--threshold Q]
     hyperfem plot OUTPUT_FOLDER
     hyperfem render CASE.toml [--checkpoint PATH] [-o OUT.png] [--scalars NAME] [--set KEY=VALUE ...]
-    hyperfem convert IN OUT.msh [--reorient] [--tags NAME]
+    hyperfem convert IN OUT.msh [--reorient] [--tags NAME] [--names TAG=NAME,...]
     hyperfem --version
 
 Every command runs under ``mpiexec -n N`` (mesh generation and conversion on
@@ -114,6 +114,11 @@ def make_parser() -> ArgumentParser:
         help="continue from a checkpoint of this case (default: the newest in OUTPUT/NAME.checkpoint)",
     )
     r.add_argument("--print-python", action="store_true", help="print the equivalent Python script and exit")
+    r.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the results of a previous run in the output folder (without it such a folder is refused)",
+    )
 
     c = sub.add_parser(
         "check",
@@ -239,6 +244,13 @@ def make_parser() -> ArgumentParser:
     v.add_argument("output", type=Path, help="output .msh")
     v.add_argument("--reorient", action="store_true", help="fix inverted tetrahedra by swapping two vertices")
     v.add_argument("--tags", default=None, help="integer cell-data array with the group tags (default: detect)")
+    v.add_argument(
+        "--names",
+        default=None,
+        metavar="TAG=NAME,...",
+        help="names of tagged groups, e.g. --names 1=beam,2=clamped (region:TAG=NAME or boundary:TAG=NAME where a "
+        "tag is both; default: the file's names, else region_TAG / boundary_TAG)",
+    )
     return p
 
 
@@ -284,6 +296,8 @@ def _run(args) -> dict | None:
     if args.print_python:
         _say(script(case, restart))
         return None
+    if restart is None:
+        _refuse_previous_run(case.output.directory, overwrite=args.overwrite)
     built = build(case, MPI.COMM_WORLD, echo=True)
     summary = built.simulation.run(restart=restart)
     lines = [format_summary(summary)]
@@ -291,6 +305,23 @@ def _run(args) -> dict | None:
         lines.append(f"  reaction on {name}: force {_vector(reaction['force'])}, moment {_vector(reaction['moment'])}")
     _say("\n".join(lines))
     return summary
+
+
+def _refuse_previous_run(folder: Path, *, overwrite: bool) -> None:
+    """Refuse an output folder that holds a previous run's summary, unless ``overwrite`` (then say so)."""
+    from hyperfem.errors import OutputError
+    from hyperfem.io.results import previous_summaries
+
+    found = previous_summaries(folder, MPI.COMM_WORLD)
+    if not found:
+        return
+    names = ", ".join(p.name for p in found)
+    if not overwrite:
+        raise OutputError(
+            f"run: {folder} holds a previous run ({names}); give --overwrite to replace it, --restart to continue "
+            "it, or another --output"
+        )
+    _say(f"overwriting the previous run in {folder} ({names})")
 
 
 def _vector(values) -> str:
@@ -348,13 +379,14 @@ def _mesh(args) -> None:
 
     if args.generator is None:
         raise ParameterError("mesh: name a generator: hyperfem mesh beam ... or hyperfem mesh fusiform ...")
-    out = args.output or Path(f"{args.generator}_h{args.size:g}.msh")
+    out = args.output or Path(f"{args.generator}_h{args.size:g}.msh").resolve()  # say where the default went
+    allow_large = True if args.allow_large else None  # None: HYPERFEM_ALLOW_LARGE decides
 
     def write() -> str:
         if args.generator == "beam":
             from hyperfem.mesh.beam import write_beam_mesh
 
-            write_beam_mesh(out, h=args.size, order=args.order)
+            write_beam_mesh(out, h=args.size, order=args.order, allow_large=allow_large)
         else:
             from hyperfem.mesh.fusiform import FusiformGeometry, write_fusiform_mesh
 

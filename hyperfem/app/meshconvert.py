@@ -9,8 +9,9 @@ Where the groups come from, in this order:
 
 1. an integer cell-data array — ``--tags NAME``, else ``gmsh:physical``,
    ``medit:ref`` or ``CellEntityIds`` — on the tetrahedra (regions) and the
-   triangles (boundaries); names from the file's field data (gmsh), else
-   ``region_<tag>`` / ``boundary_<tag>``;
+   triangles (boundaries); names from ``names`` (``--names 1=beam,2=clamped``),
+   else from the file's field data (gmsh), else ``region_<tag>`` /
+   ``boundary_<tag>`` (the notes list the tags left without a name);
 2. else the file's cell sets (Abaqus ``*ELSET``; sets of tetrahedra become
    regions, sets of triangles boundaries) and point sets (``*NSET``: the
    exterior faces whose three corners are all in the set become a boundary);
@@ -51,9 +52,9 @@ import numpy as np
 
 from hyperfem.app.abaqus import faces, has_surfaces, read_inp
 from hyperfem.app.meshcheck import orientation
-from hyperfem.errors import MeshError, MeshFileNotFoundError
+from hyperfem.errors import MeshError, MeshFileNotFoundError, ParameterError
 
-__all__ = ["TAG_ARRAYS", "Conversion", "convert", "describe_msh"]
+__all__ = ["NAMED_DIMS", "TAG_ARRAYS", "Conversion", "convert", "describe_msh", "parse_names"]
 
 TAG_ARRAYS = ("gmsh:physical", "medit:ref", "CellEntityIds")
 """Cell-data arrays read as group tags when ``--tags`` is not given."""
@@ -207,8 +208,47 @@ def _exterior_facets(cells: np.ndarray) -> np.ndarray:
     return every[index[counts == 1]]
 
 
-def _groups_from_array(mesh, name, volume, facets, tet, path):
-    field_names = _names_from_field_data(mesh) if name == "gmsh:physical" else {}
+NAMED_DIMS = {"region": 3, "boundary": 2}
+"""Prefixes of ``--names`` entries that name one dimension (``region:1=muscle``)."""
+
+
+def parse_names(text: str | None) -> dict[tuple[int | None, int], str]:
+    """``"1=beam,boundary:2=clamped"`` → ``{(None, 1): "beam", (2, 2): "clamped"}`` (dimension ``None``: any).
+
+    Raises:
+        ParameterError: An entry is not ``TAG=NAME`` / ``region:TAG=NAME`` / ``boundary:TAG=NAME``.
+    """
+    out: dict[tuple[int | None, int], str] = {}
+    if not text:
+        return out
+    for entry in (e.strip() for e in text.split(",")):
+        key, sep, value = entry.partition("=")
+        kind, colon, tag = key.strip().rpartition(":")
+        dim = NAMED_DIMS.get(kind.strip()) if colon else None
+        if not sep or not value.strip() or not re.fullmatch(r"-?\d+", tag.strip()) or (colon and dim is None):
+            raise ParameterError(
+                f"convert --names: {entry!r} is not TAG=NAME (or region:TAG=NAME, boundary:TAG=NAME), e.g. "
+                "--names 1=beam,2=clamped"
+            )
+        out[(dim, int(tag))] = value.strip()
+    return out
+
+
+def _group_name(kind: str, dim: int, tag: int, file_names: Mapping, given: Mapping, unnamed: list[str]) -> str:
+    """The name of tag ``tag`` of dimension ``dim``: ``--names``, else the file's field data, else ``kind_tag``."""
+    for key in ((dim, tag), (None, tag)):
+        if key in given:
+            return given[key]
+    if (dim, tag) in file_names:
+        return file_names[(dim, tag)]
+    unnamed.append(f"{kind} {tag}")
+    return f"{kind}_{tag}"
+
+
+def _groups_from_array(mesh, name, volume, facets, tet, path, names=None, unnamed=None):
+    field_names = _names_from_field_data(mesh)
+    given = names or {}
+    unnamed = [] if unnamed is None else unnamed
     data = mesh.cell_data[name]
     for i in (*volume, *facets):
         if not np.issubdtype(np.asarray(data[i]).dtype, np.integer):
@@ -218,14 +258,33 @@ def _groups_from_array(mesh, name, volume, facets, tet, path):
     facet_tags = np.concatenate([np.asarray(data[i]).reshape(-1) for i in facets]) if facets else np.zeros(0, int)
     facet_data = np.concatenate(facet_cells) if facet_cells else np.zeros((0, 3 if tet == "tetra" else 6), int)
     unassigned = cell_tags <= 0 if name == "gmsh:physical" else np.zeros(len(cell_tags), dtype=bool)
-    regions = {}
-    for value in np.unique(cell_tags[~unassigned]):
-        regions[field_names.get((3, int(value)), f"region_{int(value)}")] = cell_tags == value
+    region_tags = [int(v) for v in np.unique(cell_tags[~unassigned])]
     keep = facet_tags > 0 if name == "gmsh:physical" else np.ones(len(facet_tags), dtype=bool)
-    boundaries = {}
-    for value in np.unique(facet_tags[keep]):
-        boundaries[field_names.get((2, int(value)), f"boundary_{int(value)}")] = facet_data[facet_tags == value]
+    boundary_tags = [int(v) for v in np.unique(facet_tags[keep])]
+    _check_named_tags(given, region_tags, boundary_tags, path)
+    regions, boundaries = {}, {}
+    for groups, kind, dim, found in ((regions, "region", 3, region_tags), (boundaries, "boundary", 2, boundary_tags)):
+        for value in found:
+            group = _group_name(kind, dim, value, field_names, given, unnamed)
+            if group in groups:
+                raise ParameterError(f"convert --names: two {kind} tags are named {group!r}; give each its own name")
+            groups[group] = (cell_tags if dim == 3 else facet_tags) == value
+    boundaries = {k: facet_data[v] for k, v in boundaries.items()}
     return regions, unassigned, boundaries
+
+
+def _check_named_tags(given: Mapping, region_tags: list[int], boundary_tags: list[int], path: Path) -> None:
+    """Refuse ``--names`` entries for tags the file does not have."""
+    present = {3: set(region_tags), 2: set(boundary_tags)}
+    for dim, tag in given:
+        found = tag in present[dim] if dim is not None else tag in present[3] | present[2]
+        if not found:
+            where = {None: "no region or boundary", 3: "no region", 2: "no boundary"}[dim]
+            raise ParameterError(
+                f"convert --names: {path} has {where} with tag {tag} (region tags: "
+                f"{', '.join(map(str, region_tags)) or 'none'}; boundary tags: "
+                f"{', '.join(map(str, boundary_tags)) or 'none'})"
+            )
 
 
 def _groups_from_sets(mesh, volume, facets, cells, path, helpers=frozenset()):
@@ -325,7 +384,14 @@ def _one_boundary_per_face(boundaries, from_nodes, strict, path, cautions, notes
     return {name: f for name, f in boundaries.items() if name in kept}
 
 
-def convert(source: str | Path, target: str | Path, *, reorient: bool = False, tags: str | None = None) -> Conversion:
+def convert(
+    source: str | Path,
+    target: str | Path,
+    *,
+    reorient: bool = False,
+    tags: str | None = None,
+    names: str | Mapping[tuple[int | None, int], str] | None = None,
+) -> Conversion:
     """Convert a tetrahedral mesh with its groups to a gmsh 2.2 ``.msh`` file (serial; call on one rank).
 
     Args:
@@ -333,6 +399,10 @@ def convert(source: str | Path, target: str | Path, *, reorient: bool = False, t
         target: The ``.msh`` file to write.
         reorient: Fix inverted tetrahedra (swap two vertices) instead of refusing them.
         tags: Name of the integer cell-data array holding the group tags.
+        names: Names of tagged groups: ``"1=beam,2=clamped"`` (``region:1=...`` or
+            ``boundary:1=...`` where a tag is both), or :func:`parse_names`' mapping.
+            They replace the file's own names; tags named by neither become
+            ``region_<tag>`` / ``boundary_<tag>`` (listed in the notes).
 
     Raises:
         MeshFileNotFoundError: ``source`` does not exist.
@@ -358,11 +428,20 @@ def convert(source: str | Path, target: str | Path, *, reorient: bool = False, t
     if points.shape[1] == 2:
         raise MeshError(f"{source}: planar points (2 coordinates) cannot carry tetrahedra")
 
+    given = parse_names(names) if names is None or isinstance(names, str) else dict(names)
     name = _tag_array(mesh, tags, source)
     from_nodes: list[str] = []
+    if name is None and given:
+        raise ParameterError(f"convert --names: {source} has no tag array (its groups are named sets, or none)")
     if name is not None:
-        regions, unassigned, boundaries = _groups_from_array(mesh, name, volume, facets, tet, source)
+        unnamed: list[str] = []
+        regions, unassigned, boundaries = _groups_from_array(mesh, name, volume, facets, tet, source, given, unnamed)
         notes.append(f"groups from the cell-data array {name!r}")
+        if unnamed:
+            notes.append(
+                f"no names for {', '.join(unnamed)} (kept as {', '.join(u.replace(' ', '_') for u in unnamed)}); "
+                "name them with --names TAG=NAME,..."
+            )
     elif any(not k.startswith("gmsh:") for k in mesh.cell_sets) or mesh.point_sets:
         helpers = abaqus.surface_sets() if abaqus is not None else set()
         regions, unassigned, boundaries, dropped, from_nodes = _groups_from_sets(

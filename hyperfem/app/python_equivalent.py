@@ -16,6 +16,8 @@ from the case file: every value was type-checked by the schema first.
 
 from __future__ import annotations
 
+import os
+
 import dataclasses
 import hashlib
 import json
@@ -318,10 +320,50 @@ def _output_directory(case: Case) -> Statement:
     )
 
 
+def _case_folder(case: Case) -> Path:
+    """The case file's folder (absolute): its relative paths start there."""
+    return case.source.expanduser().resolve().parent
+
+
+def _case_relative(case: Case, path: Path) -> str | None:
+    """``path`` relative to the case file's folder (``../meshes/beam_h1.msh``), or ``None`` if it lies far off.
+
+    Files in the case's folder, or beside it (one ``..``), are printed relative to it so that
+    the script shows the path as the case file gives it; others keep their absolute path.
+    """
+    relative = os.path.relpath(Path(path).resolve(), _case_folder(case))
+    parts = Path(relative).parts
+    ups = len(parts) - len([p for p in parts if p != ".."])
+    return relative if ups <= 1 and not Path(relative).is_absolute() else None
+
+
+def _path_expression(case: Case, path: Path) -> str:
+    """Source of a file path: ``case_dir / 'rel'`` when :func:`_case_relative` allows, else the absolute path."""
+    relative = _case_relative(case, path)
+    return literal(str(path)) if relative is None else f"case_dir / {literal(Path(relative).as_posix())}"
+
+
+def _uses_case_dir(case: Case) -> bool:
+    files = [case.mesh.file]
+    if case.fibres is not None and case.fibres.type not in ("laplace", "constant"):
+        files.append(_fibre_file(case))
+    return any(f is not None and _case_relative(case, f) is not None for f in files)
+
+
+def _case_dir(case: Case) -> Statement:
+    return Statement(
+        "mesh.file",
+        "case_dir",
+        literal(_case_folder(case)),
+        imports=("from pathlib import Path",),
+        comment=f"the folder of {_docstring_text(str(case.source))}: the paths of the case file are relative to it",
+    )
+
+
 def _mesh(case: Case) -> Statement:
     mesh = case.mesh
     if mesh.file is not None:
-        return Statement("mesh.file", "domain", call("hf.read_mesh", literal(str(mesh.file)), "comm"))
+        return Statement("mesh.file", "domain", call("hf.read_mesh", _path_expression(case, mesh.file), "comm"))
     kwargs = {}
     if mesh.size is not None:
         kwargs["h"] = literal(mesh.size)
@@ -345,12 +387,17 @@ def _fibres(case: Case) -> list[Statement]:
     elif f.type == "constant":
         expr = call("constant_fibres", "domain.mesh", literal(f.options["direction"]), **rep)
     else:
-        path = Path(f.options["file"]).expanduser()
-        path = path if path.is_absolute() else (case.source.parent / path).resolve()
         extra = {"location": literal(f.options["location"])} if "location" in f.options else {}
-        expr = call("fibres_from_file", "domain", literal(str(path)), literal(f.options["name"]), **extra)
+        path = _path_expression(case, _fibre_file(case))
+        expr = call("fibres_from_file", "domain", path, literal(f.options["name"]), **extra)
     function = expr.split("(")[0]
     return [Statement("fibres", "fibres", expr, imports=(f"from hyperfem.fibres import {function}",))]
+
+
+def _fibre_file(case: Case) -> Path:
+    """The fibre file of ``[fibres] file`` (absolute)."""
+    path = Path(case.fibres.options["file"]).expanduser()
+    return path if path.is_absolute() else (case.source.parent / path).resolve()
 
 
 @dataclass
@@ -568,6 +615,7 @@ def plan(case: Case) -> list[Statement]:
     """
     materials = _materials(case)
     return [
+        *([_case_dir(case)] if _uses_case_dir(case) else []),
         _output_directory(case),
         _mesh(case),
         *_fibres(case),

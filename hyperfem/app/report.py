@@ -32,10 +32,12 @@ def _vector(value) -> str:
 
 def progress_line(row: dict) -> str:
     """One line per recorded state: step, time, increment, Newton iterations, residual, min J, reactions, probes."""
+    dynamic = "kinetic_energy" in row  # a time integration: times in s; else load factors (no unit)
+    unit = " s" if dynamic else ""
     parts = [
         f"step {row['step']:>3}",
-        f"t = {row['time']:.6g}",
-        f"dt = {row['dt']:.4g}",
+        f"t = {row['time']:.6g}{unit}" if dynamic else f"load factor {row['time']:.6g}",
+        f"dt = {row['dt']:.4g}{unit}" if dynamic else f"increment {row['dt']:.4g}",
         f"newton {row['newton_iterations']}",
     ]
     if row.get("residual") == row.get("residual"):  # not nan
@@ -50,11 +52,11 @@ def progress_line(row: dict) -> str:
             forces.setdefault(key[len("reaction_") : -3], []).append(value)
     for name, force in forces.items():
         if name != "total":
-            parts.append(f"F[{name}] = {_vector(force)}")
+            parts.append(f"F[{name}] = {_vector(force)} N")
     if "probe_displacement" in row and row["probe_displacement"]:
-        parts.append(f"u(probe 0) = {_vector(row['probe_displacement'][0])}")
+        parts.append(f"u(probe 0) = {_vector(row['probe_displacement'][0])} m")
     if "kinetic_energy" in row:
-        parts.append(f"K = {row['kinetic_energy']:.4g}")
+        parts.append(f"K = {row['kinetic_energy']:.4g} J")
     return "  ".join(parts)
 
 

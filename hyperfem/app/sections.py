@@ -625,12 +625,12 @@ def check_output(
     values = check_table(table, OUTPUT, "output")
     if "times" in values and "every" in values:
         raise CaseFileError("output.every: give either times or every, not both")
+    end = stepping.options.get("t_end") if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
     times = values.get("times")
+    if times is not None:
+        _check_output_times(times, end, stepping.dynamic)
     if "every" in values:
-        end = stepping.options.get("t_end") if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
-        every = values["every"]
-        n = int(round(abs(end) / every))
-        times = tuple(k * every * (1.0 if end >= 0 else -1.0) for k in range(1, n + 1))
+        times = _every_times(values["every"], end, stepping.dynamic)
     fields = tuple(values.get("fields", ("displacement",)))
     if "fibre_stretch" in fields and fibres is None:
         raise CaseFileError("output.fields: fibre_stretch needs a [fibres] table")
@@ -676,6 +676,46 @@ def check_output(
         progress=values.get("progress", True),
         render=render,
     )
+
+
+def _span_text(end: float, dynamic: bool) -> str:
+    """``time span [0, 1] (stepping.t_end)`` or ``load-factor span [0, 1] (stepping.end)``."""
+    low, high = min(0.0, end), max(0.0, end)
+    what, key = ("time span", "stepping.t_end") if dynamic else ("load-factor span", "stepping.end")
+    return f"{what} [{low:g}, {high:g}] ({key})"
+
+
+def _check_output_times(times: Sequence[float], end: float, dynamic: bool) -> None:
+    """Refuse ``output.times`` outside the run: no frame would ever be written there."""
+    low, high = min(0.0, end), max(0.0, end)
+    slack = 1e-9 * max(1.0, abs(end))
+    for i, t in enumerate(times):
+        if not low - slack <= t <= high + slack:
+            raise CaseFileError(
+                f"output.times[{i}]: {t:g} is outside the run's {_span_text(end, dynamic)}; no frame would be "
+                "written there"
+            )
+
+
+def _every_times(every: float, end: float, dynamic: bool) -> tuple[float, ...]:
+    """The output times of ``output.every``: its multiples up to ``end``, and ``end`` itself (the final state).
+
+    An interval longer than the run leaves only the final state (with a warning).
+    """
+    span = abs(end)
+    sign = 1.0 if end >= 0 else -1.0
+    n = int(math.floor(span / every + 1e-9))
+    times = [k * every * sign for k in range(1, n + 1)]
+    if not times or abs(times[-1] - end) > 1e-9 * max(1.0, span):
+        times.append(float(end))
+    if n == 0 and span > 0:
+        from hyperfem.app.report import warn  # one line on rank 0, as every warning of the command
+
+        warn(
+            f"output.every: {every:g} is longer than the run's {_span_text(end, dynamic)}; the field file gets "
+            "the initial and the final state only"
+        )
+    return tuple(times)
 
 
 def _render(raw: object, fibres: FibreSpec | None, materials: Sequence[MaterialSpec]) -> RenderSpec | None:

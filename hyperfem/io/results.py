@@ -24,7 +24,17 @@ from dolfinx import fem, io
 
 from hyperfem.errors import OutputError
 
-__all__ = ["VTXOutput", "XDMFOutput", "ensure_output_dir", "jsonable", "on_rank0", "vtx_steps", "write_json"]
+__all__ = [
+    "VTXOutput",
+    "XDMFOutput",
+    "ensure_output_dir",
+    "jsonable",
+    "note_overwrite",
+    "on_rank0",
+    "previous_summaries",
+    "vtx_steps",
+    "write_json",
+]
 
 
 def _reason(exc: BaseException) -> str:
@@ -81,6 +91,47 @@ def ensure_output_dir(path: str | Path, comm) -> Path:
 
     on_rank0(comm, probe, f"output folder {path} cannot be created or written")
     return path
+
+
+def _is_summary(path: Path) -> bool:
+    """Whether ``path`` is the JSON summary of a run (a dict with ``name``, ``steps`` and ``completed``)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and {"name", "steps", "completed"} <= data.keys()
+
+
+def previous_summaries(path: str | Path, comm) -> list[Path]:
+    """The JSON summaries of earlier runs in the folder ``path`` (rank 0 looks; every rank gets the list).
+
+    A folder that does not exist, or holds no summary, gives ``[]``.
+    """
+    path = Path(path)
+
+    def look() -> list[str]:
+        if not path.is_dir():
+            return []
+        return [str(p) for p in sorted(path.glob("*.json")) if _is_summary(p)]
+
+    found = on_rank0(comm, look, f"cannot read the output folder {path}")
+    return [Path(p) for p in comm.bcast(found, root=0)]
+
+
+def note_overwrite(paths: Sequence[str | Path], comm) -> list[Path]:
+    """Say (rank 0) which of ``paths`` exist and are about to be overwritten; every rank gets that list.
+
+    For scripts that write to a fixed default folder (the demos): a second run replaces the
+    first one's files, and says so in one line (``overwriting output/bend.json, output/bend.bp``).
+    """
+
+    def look() -> list[str]:
+        return [str(p) for p in paths if Path(p).exists()]
+
+    found = comm.bcast(on_rank0(comm, look, "cannot look at the output files"), root=0)
+    if found and comm.rank == 0:
+        print(f"overwriting {', '.join(found)} (the output of a previous run)", flush=True)
+    return [Path(p) for p in found]
 
 
 def jsonable(obj):

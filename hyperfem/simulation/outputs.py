@@ -543,6 +543,14 @@ def format_summary(summary: dict) -> str:
     lines.append(f"  wall time (stepping, after form compilation): {summary['wall_time']:.2f} s")
     files = summary.get("files", {})
     if files:
-        shown = [f"{path} (ParaView)" if path.endswith(".bp") else path for path in files.values()]
+        shown = []
+        for role, path in files.items():
+            parts = summary.get(f"{role}_parts") or [path]  # a restarted time series: every file, in order
+            shown.extend(_file_text(p) for p in parts)
         lines.append(f"  output: {', '.join(shown)}")
     return "\n".join(lines)
+
+
+def _file_text(path: str) -> str:
+    """A file of the summary's output line (ParaView time series marked)."""
+    return f"{path} (ParaView)" if path.endswith((".bp", ".xdmf")) else path
