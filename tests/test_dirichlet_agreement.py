@@ -88,3 +88,25 @@ def test_the_command_refuses_the_pair_in_one_line(tmp_path):
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
     assert "bc[1] (PrescribedDisplacement on 'surface') and bc[0] (Clamp on 'clamped') prescribe different" in lines[0]
+
+
+def test_callable_values_reach_the_ghost_copies_of_boundary_dofs(comm):
+    """Callable values are interpolated on the boundary's cells only; the ghost copies of their dofs must
+    hold the owners' values (they kept the previous ones: on 2 ranks a 3x3x3 cube with a prescribed
+    affine face stalled at t = 0.25, DIVERGED_LINE_SEARCH, and converged serially)."""
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, 3, 3, 3)
+    domain = hf.Domain.from_locators(mesh, {"x0": lambda x: np.isclose(x[0], 0.0), "x1": lambda x: np.isclose(x[0], 1.0)})
+    affine = hf.PrescribedDisplacement("x1", lambda x: np.array([0.2, 0.1, -0.1])[:, None] * x)
+    rotating = hf.PrescribedDisplacement("x1", lambda x, s: np.vstack([0.0 * x[0], -s * x[2], s * x[1]]))
+    for bc in (affine, rotating):
+        problem = _problem(domain, [hf.Clamp("x0"), bc])
+        problem.set_load_factor(0.5)
+        for dirichlet in problem._dirichlet:
+            for _, w, _, _ in dirichlet._parts:
+                local = w.x.array.copy()
+                w.x.scatter_forward()  # the owners' values into the ghosts
+                mismatch = MPI.COMM_WORLD.allreduce(float(np.max(np.abs(local - w.x.array), initial=0.0)), op=MPI.MAX)
+                assert mismatch == 0.0

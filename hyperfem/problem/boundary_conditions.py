@@ -188,6 +188,10 @@ class _CompiledDirichlet:
                 else:
                     row = components.index(comp)
                     g.interpolate(lambda x, f=f, row=row: f(x)[row], cells0=self._cells)
+                # Interpolation on a subset of cells leaves the ghost copies of their dofs
+                # untouched; a Dirichlet dof that is a ghost here must hold its owner's value
+                # (before, the ghosts kept the previous one and 2-rank solves stalled).
+                g.x.scatter_forward()
             else:
                 vals = [float(v) for v in value]
                 if len(vals) != len(components):
