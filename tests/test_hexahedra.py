@@ -246,3 +246,28 @@ def test_mass_on_hexahedra():
     n = V.dofmap.index_map.size_local
     assert box.comm.allreduce(float(m.x.array[:n].sum()), op=MPI.SUM) == pytest.approx(3.0 * 0.48, rel=1e-12)
     assert box.comm.allreduce(float(m.x.array[:n].min()), op=MPI.MIN) > 0.0
+
+
+def test_a_simulation_runs_on_hexahedra(tmp_path):
+    """The run layer took the simplex quality measures and refused hexahedral meshes."""
+    from hyperfem.simulation import Probe, Simulation
+
+    mesh = dmesh.create_box(MPI.COMM_WORLD, [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]], [10, 4, 4], dmesh.CellType.hexahedron)
+    domain = hf.Domain.from_locators(
+        mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
+    )
+    params = CantileverSpec().lame
+    problem = hf.HyperelasticProblem(domain, lambda F: neo_hookean(F, params), bcs=[hf.Clamp("clamped")],
+                                     loads=[bend_load()])
+    summary = Simulation(problem, hf.NewtonSolver(problem), hf.StepPolicy(), [Probe([TEST_POINT])]).run()
+    assert summary["completed"] and summary["mesh_quality"] is None
+    assert summary["probe_displacement"][0][1] == pytest.approx(-1.2184, rel=2e-3)  # Q1, h = 1 (see the module)
+
+
+def test_lumped_mass_on_hexahedra_is_refused_in_implicit_dynamics():
+    from hyperfem import dynamics as dyn
+
+    base = hf.HyperelasticProblem(_box(2), lambda F: neo_hookean(F, LameParameters.from_youngs(1e3, 0.3)))
+    with pytest.raises(ParameterError, match="lumped mass on hexahedron cells would integrate the elastic energy"):
+        dyn.IncrementalProblem(base, dyn.Newmark(), MassDensity(1.0, lumped=True))
+    dyn.IncrementalProblem(base, dyn.Newmark(), MassDensity(1.0))  # consistent mass: fine

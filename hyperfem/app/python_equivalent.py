@@ -269,11 +269,13 @@ def _material(m: MaterialSpec, suffix: str, case: Case, activation: str) -> list
 
 
 # -- the plan ----------------------------------------------------------------------------------------
-def _quadrature_degree(case: Case) -> int:
+def _quadrature_degree(case: Case) -> str:
+    """Source of the volume rule's degree: the case's, else the default for the mesh's cell type."""
     p = case.problem
     if p.quadrature_degree is not None:
-        return p.quadrature_degree
-    return default_quadrature_degree(p.degree or (2 if case.mixed else 1))
+        return literal(p.quadrature_degree)
+    degree = p.degree or (2 if case.mixed else 1)
+    return call("default_quadrature_degree", literal(degree), "domain.mesh.topology.cell_type")
 
 
 def _plain(spec: object) -> object:
@@ -381,7 +383,7 @@ def _fibres(case: Case) -> list[Statement]:
         return []
     rep = {"representation": literal(f.representation)} if f.representation != "DG0" else {}
     if f.representation == "quadrature":
-        rep["quadrature_degree"] = literal(_quadrature_degree(case))
+        rep["quadrature_degree"] = _quadrature_degree(case)
     if f.type == "laplace":
         expr = call("laplace_fibres", "domain", literal(f.options["source"]), literal(f.options["target"]), **rep)
     elif f.type == "constant":
@@ -391,7 +393,10 @@ def _fibres(case: Case) -> list[Statement]:
         path = _path_expression(case, _fibre_file(case))
         expr = call("fibres_from_file", "domain", path, literal(f.options["name"]), **extra)
     function = expr.split("(")[0]
-    return [Statement("fibres", "fibres", expr, imports=(f"from hyperfem.fibres import {function}",))]
+    imports = (f"from hyperfem.fibres import {function}",)
+    if "default_quadrature_degree(" in expr:
+        imports += ("from hyperfem.problem.hyperelastic import default_quadrature_degree",)
+    return [Statement("fibres", "fibres", expr, imports=imports)]
 
 
 def _fibre_file(case: Case) -> Path:

@@ -234,6 +234,15 @@ class IncrementalProblem:
                         base.energy_internal, u, dw, dw
                     )
         md = None
+        if density is not None and density.lumped and base.domain.mesh.topology.cell_type.name not in (
+            "interval", "triangle", "tetrahedron"
+        ):
+            # The lumped rule is the vertex rule, and every cell integral joins it (FFCx needs one rule per
+            # kernel): on hexahedra the elastic energy would be integrated at the corners only.
+            raise ParameterError(
+                f"{type(self).__name__}: lumped mass on {base.domain.mesh.topology.cell_type.name} cells would "
+                "integrate the elastic energy on the vertex rule; use MassDensity(rho) (consistent) here"
+            )
         if density is not None:
             md = density.metadata(degree)
             if not density.lumped:

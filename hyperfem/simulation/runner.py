@@ -257,9 +257,11 @@ class Simulation:
             policy = self.stepper.resumed(self.policy)
             self.fields.refresh()
         self.stage = (DynamicStage if self.kind == "dynamic" else QuasiStaticStage)(self.problem, self.solver)
-        if self.mesh_quality is None:
-            # seed 003 §5.6: look at the mesh before solving on it (a warning, not an error, when poor)
-            self.mesh_quality = mesh_quality(self.fields.base.domain)
+        domain = self.fields.base.domain
+        if self.mesh_quality is None and domain.mesh.topology.cell_type.name in ("triangle", "tetrahedron"):
+            # seed 003 §5.6: look at the mesh before solving on it (a warning, not an error, when poor);
+            # the measures are those of simplices (hexahedral meshes run without them)
+            self.mesh_quality = mesh_quality(domain)
             self.mesh_quality.warn_if_poor()
         started = []
         self._guard = InterruptGuard(self.comm)
