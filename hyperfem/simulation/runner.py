@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import signal
 import time as _time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -47,7 +48,14 @@ from hyperfem.simulation.interrupt import InterruptGuard
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
 
-__all__ = ["Fields", "Simulation"]
+__all__ = ["LARGE_DISPLACEMENT", "Fields", "LargeDisplacementWarning", "Simulation"]
+
+LARGE_DISPLACEMENT = 10.0
+"""A displacement this many times the body's size draws a :class:`LargeDisplacementWarning`."""
+
+
+class LargeDisplacementWarning(UserWarning):
+    """The displacement is far larger than the body: probably a load or unit error."""
 
 
 def _is_time_step(problem) -> bool:
@@ -193,6 +201,7 @@ class Simulation:
         self._start = None
         self._wall = 0.0
         self._wall_before = 0.0
+        self._warned_size = False
 
     # -- state -----------------------------------------------------------------------
     @property
@@ -314,6 +323,39 @@ class Simulation:
             where.append(f"{checkpoint_words} {self.files['checkpoint']}")
         return f" ({'; '.join(where)})" if where else ""
 
+    def _body_size(self) -> float:
+        """Diagonal of the body's bounding box (reference configuration; collective)."""
+        x = self.fields.base.domain.mesh.geometry.x
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        self.comm.Allreduce(x.min(axis=0, initial=np.inf), lo, op=MPI.MIN)
+        self.comm.Allreduce(x.max(axis=0, initial=-np.inf), hi, op=MPI.MAX)
+        return float(np.linalg.norm(hi - lo))
+
+    def _check_displacement_size(self) -> None:
+        """Warn once when the displacement exceeds :data:`LARGE_DISPLACEMENT` times the body's size (collective).
+
+        A load a million times too large (a unit slip: kPa for Pa) "converges" to a state no
+        hyperelastic answer is meant to describe (the bend case went 123 km); the run goes on,
+        but says so.
+        """
+        if self._warned_size:
+            return
+        u = self.fields.displacement
+        gdim = self.fields.base.domain.gdim
+        values = u.x.array.reshape(-1, gdim)
+        largest = self.comm.allreduce(float(np.max(np.linalg.norm(values, axis=1), initial=0.0)), op=MPI.MAX)
+        size = self._body_size()
+        if largest > LARGE_DISPLACEMENT * size:
+            self._warned_size = True
+            if self.comm.rank == 0:
+                warnings.warn(
+                    f"{self.name}: the displacement reaches {largest:.3g} at t = {self.time:g}, "
+                    f"{largest / size:.3g} times the body's size ({size:.3g}, the diagonal of its bounding box); "
+                    "check the loads, the material constants and their units",
+                    LargeDisplacementWarning,
+                    stacklevel=2,
+                )
+
     def _check_interrupt(self) -> None:
         """Raise :class:`~hyperfem.errors.Interrupted` on every rank if any rank was signalled (collective)."""
         guard = getattr(self, "_guard", None)
@@ -337,6 +379,7 @@ class Simulation:
             self.steps.append(record)
             self.stepper = self.stepper.after(record, self.policy)
         self.fields.refresh()
+        self._check_displacement_size()
         solve = record.solve if record is not None else initial
         row = {
             "step": 0 if record is None else record.step,

@@ -218,6 +218,11 @@ def _resolve_min_jacobian(min_jacobian: float | str | None, problem: SolidProble
         raise ParameterError(
             f"NewtonSolver: min_jacobian must be a finite number, None or 'auto', got {min_jacobian!r}"
         )
+    if not 0.0 <= min_jacobian < 1.0:
+        raise ParameterError(
+            f"NewtonSolver: min_jacobian must be in [0, 1) (the volume ratio J below which a state counts as "
+            f"inverted; the reference state has J = 1), got {min_jacobian!r}"
+        )
     return float(min_jacobian)
 
 

@@ -754,4 +754,9 @@ def integrate(
             the last time reached and ``history`` the accepted steps.
         ParameterError: If ``t_end`` lies before the problem's time.
     """
+    if not stepping.t_end > problem.time:
+        raise ParameterError(
+            f"integrate: t_end = {stepping.t_end:g} is not after the problem's time {problem.time:g} "
+            "(time runs forward; a quasi-static ramp can go down, a time integration cannot)"
+        )
     return run_steps(DynamicStage(problem, solver), stepping.policy(), on_step)
