@@ -302,7 +302,10 @@ def _run(args) -> dict | None:
     summary = built.simulation.run(restart=restart)
     lines = [format_summary(summary)]
     for name, reaction in summary.get("reactions", {}).items():
-        lines.append(f"  reaction on {name}: force {_vector(reaction['force'])}, moment {_vector(reaction['moment'])}")
+        about = f" about the {reaction['about']}" if reaction.get("about") else ""
+        lines.append(
+            f"  reaction on {name}: force {_vector(reaction['force'])} N, moment {_vector(reaction['moment'])} N m{about}"
+        )
     _say("\n".join(lines))
     return summary
 
