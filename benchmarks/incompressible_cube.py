@@ -29,7 +29,8 @@ import hyperfem as hf  # noqa: E402
 from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube  # noqa: E402
 from hyperfem.io import PointProbe  # noqa: E402
 from hyperfem.kinematics import isochoric_invariants  # noqa: E402
-from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem  # noqa: E402
+from hyperfem.problem import SplitEnergy, solid_problem  # noqa: E402
+from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
 
 ROWS = [  # (formulation, law, K/mu, cells per side)
     ("mixed", "log", 1e3, 4),

@@ -61,7 +61,7 @@ from pathlib import Path  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
-from hyperfem.activation import Activation  # noqa: E402
+from hyperfem.loading import Activation  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, positive_int  # noqa: E402
 from hyperfem.io.results import ensure_output_dir, note_overwrite, write_json  # noqa: E402

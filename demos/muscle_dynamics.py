@@ -66,7 +66,7 @@ from dolfinx import fem  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
-from hyperfem.activation import Activation  # noqa: E402
+from hyperfem.loading import Activation  # noqa: E402
 from hyperfem.cases.muscle import MUSCLE_DENSITY, muscle_problem  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402

@@ -25,7 +25,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from mpi4py import MPI  # noqa: E402, F401  (must precede dolfinx / petsc4py)
 
-from hyperfem import errors, kinematics, materials, mesh, simulation
+from hyperfem import errors, kinematics, loading, materials, mesh, simulation
 from hyperfem.errors import (
     CheckpointError,
     ConvergenceError,
@@ -88,6 +88,7 @@ __all__ = [
     "beam_mesh",
     "errors",
     "kinematics",
+    "loading",
     "materials",
     "mesh",
     "read_mesh",

@@ -18,6 +18,7 @@ __all__ = [
     "OutputError",
     "ParameterError",
     "ProblemSizeError",
+    "SolverError",
     "UnknownGroupError",
 ]
 

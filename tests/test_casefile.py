@@ -16,11 +16,12 @@ from dolfinx import fem
 from mpi4py import MPI
 
 import hyperfem as hf
-from hyperfem.app import AffineField, Scaled, Table, check_groups, load_case, plan, script
+from hyperfem.app import check_groups, load_case, plan, script
 from hyperfem.app.build import build_domain
 from hyperfem.app.casefile import CaseFileError, apply_overrides, check_case, parse_toml
 from hyperfem.app.python_equivalent import imports, must_hit_times
 from hyperfem.app.spec import LAME_LAWS
+from hyperfem.loading import AffineField, Scaled, Table
 
 from case_texts import BASE, MESH, ROOT
 

@@ -1,4 +1,4 @@
-"""``hyperfem convert`` of Abaqus ``.inp`` files with ``*SURFACE`` (hyperfem.app.abaqus).
+"""``hyperfem convert`` of Abaqus ``.inp`` files with ``*SURFACE`` (hyperfem.mesh.abaqus).
 
 A unit cube in five tetrahedra (C3D4, and C3D10 with straight mid-edge nodes),
 with scattered element and node labels in two ``*ELEMENT`` blocks, written by
@@ -23,8 +23,8 @@ from mpi4py import MPI
 
 import hyperfem as hf
 from hyperfem.app.main import dispatch
-from hyperfem.app.meshconvert import convert
 from hyperfem.errors import MeshError
+from hyperfem.mesh.convert import convert
 
 CORNERS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
 TETS = [(1, 2, 4, 5), (2, 3, 4, 7), (2, 4, 5, 7), (2, 6, 7, 5), (4, 5, 7, 8)]  # cube vertices 1..8

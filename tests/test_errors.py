@@ -317,7 +317,7 @@ def test_mass_density_rejects_non_finite(rho):
 
 
 def test_check_positive_rejects_nan_and_inf_but_takes_numpy_numbers():
-    from hyperfem.materials.parameters import check_positive
+    from hyperfem.validation import check_positive
 
     for bad in (NAN, INF, -INF, 0, -1.0, True, None, "1"):
         with pytest.raises(ParameterError, match="E must be a finite number > 0"):
@@ -709,7 +709,7 @@ def test_time_stepping_invalid(kwargs, pattern):
 
 
 def test_profiles_and_rigid_motions_invalid():
-    from hyperfem.dynamics import Ramp, RigidRotation, Steady, rotation_matrix
+    from hyperfem.loading import Ramp, RigidRotation, Steady, rotation_matrix
 
     with pytest.raises(ParameterError, match="Steady: value must be a finite number"):
         Steady(NAN)
@@ -741,7 +741,7 @@ def test_damping_and_integrators_invalid():
 
 
 def test_rigid_rotation_with_nan_angle_names_boundary():
-    from hyperfem.dynamics import rotating_surface
+    from hyperfem.loading import rotating_surface
 
     domain = _small_domain()
     bc = rotating_surface("right", (1.0, 0.0, 0.0), lambda t: NAN if t > 0.5 else t)
@@ -751,7 +751,7 @@ def test_rigid_rotation_with_nan_angle_names_boundary():
 
 
 def test_activation_invalid():
-    from hyperfem.activation import Activation
+    from hyperfem.loading import Activation
 
     mesh = _small_domain().mesh
     for bad in (NAN, INF, 1.5, "0.5", None):

@@ -57,8 +57,9 @@ import hyperfem as hf
 from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 from hyperfem.kinematics import isochoric_invariants
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
-from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem
+from hyperfem.problem import SplitEnergy, solid_problem
 from hyperfem.problem.mixed import VOLUME_CONSISTENCY_LIMIT
+from hyperfem.simulation.reactions import ReactionForce
 
 MU = 1.0
 LAWS = sorted(VOLUMETRIC_LAWS)

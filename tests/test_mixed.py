@@ -35,9 +35,9 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 import hyperfem as hf
-from hyperfem.activation import Activation
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import isochoric_invariants
+from hyperfem.loading import Activation
 from hyperfem.materials.muscle import MuscleParameters, muscle_isochoric
 from hyperfem.problem import MixedHyperelasticProblem, SplitEnergy, solid_problem
 

@@ -19,8 +19,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 import hyperfem as hf
-from hyperfem.activation import Activation
 from hyperfem.errors import ParameterError
+from hyperfem.loading import Activation
 from hyperfem.materials.mooney_rivlin import MooneyRivlinParameters, mooney_rivlin, mooney_rivlin_stress
 from hyperfem.materials.muscle import (
     MuscleParameters,
@@ -34,7 +34,7 @@ from hyperfem.materials.muscle import (
     transversely_isotropic,
 )
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS, volumetric_energy
-from hyperfem.problem import ReactionForce
+from hyperfem.simulation.reactions import ReactionForce
 
 RNG = np.random.default_rng(20240603)
 

@@ -18,9 +18,9 @@ from mpi4py import MPI
 
 import hyperfem as hf
 from hyperfem import dynamics as dyn
-from hyperfem.activation import Activation
 from hyperfem.cases.muscle import MUSCLE_DENSITY, muscle_problem
 from hyperfem.fibres import laplace_fibres
+from hyperfem.loading import Activation
 
 ROOT = Path(__file__).resolve().parent.parent
 MESH = ROOT / "meshes" / "fusiform_h8mm.msh"  # committed: a gmsh of another version meshes differently

@@ -34,10 +34,10 @@ from dolfinx import fem
 
 import hyperfem as hf
 from hyperfem import dynamics as dyn
-from hyperfem.activation import Activation
 from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 from hyperfem.fibres import constant_fibres
 from hyperfem.io import vtx_steps
+from hyperfem.loading import Activation
 from hyperfem.simulation import (
     CellFunctions,
     ConvergenceLog,

@@ -22,8 +22,8 @@ import pytest
 import hyperfem as hf
 from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 from hyperfem.cases import CantileverSpec
-from hyperfem.dynamics.motion import Ramp, rotating_surface
 from hyperfem.kinematics import isochoric_invariants
+from hyperfem.loading import Ramp, rotating_surface
 from hyperfem.problem import SplitEnergy, solid_problem
 
 MESHES = Path(__file__).resolve().parent.parent / "meshes"

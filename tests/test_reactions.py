@@ -16,7 +16,7 @@ Checks against closed forms and balance laws:
   default ``shared="traction"`` gives each face its exact force
   :math:`P_{ii} A` and the faces add up to the total; the nodal sum gives the
   face x = 1 the strip :math:`-P_{22} h/2` of its neighbour y = 0;
-* the three-field problem gives the force of :class:`~hyperfem.problem.ReactionForce`;
+* the three-field problem gives the force of :class:`~hyperfem.simulation.reactions.ReactionForce`;
 * in a dynamic run the supports carry the rate of change of momentum:
   :math:`F = \int\rho\,(a + \alpha v)\,dX` when no other force acts
   (:math:`\alpha` the viscous damping), and the free rows of the balance vanish.
@@ -40,8 +40,9 @@ import hyperfem as hf
 from hyperfem import dynamics as dyn
 from hyperfem.cases import BEND_TRACTION, bend_load
 from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
-from hyperfem.problem import ReactionForce, SplitEnergy, solid_problem
+from hyperfem.problem import SplitEnergy, solid_problem
 from hyperfem.simulation import DirichletReactions, Reaction, Reactions, Simulation
+from hyperfem.simulation.reactions import ReactionForce
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1e6, nu=0.3)
 MESH = Path(__file__).resolve().parent.parent / "meshes" / "beam_h2.msh"

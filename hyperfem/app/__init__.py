@@ -3,9 +3,6 @@
 * :mod:`~hyperfem.app.casefile` — the case schema, validation, ``--set`` overrides (:func:`load_case`);
 * :mod:`~hyperfem.app.python_equivalent` — the case as Python statements (:func:`script`);
 * :mod:`~hyperfem.app.build` — those statements evaluated: the objects of the run (:func:`build`);
-* :mod:`~hyperfem.app.meshconvert` — ``hyperfem convert`` (meshio → gmsh);
-* :mod:`~hyperfem.app.meshcheck` — inverted and degenerate cells;
-* :mod:`~hyperfem.app.functions` — profiles and fields case files need (:class:`Table`, :class:`AffineField`);
 * :mod:`~hyperfem.app.main` — the argument parser and the subcommands.
 
 >>> from hyperfem.app import build, load_case
@@ -15,16 +12,12 @@
 
 from hyperfem.app.build import Built, build, check_groups, check_mesh
 from hyperfem.app.casefile import Case, CaseFileError, load_case
-from hyperfem.app.functions import AffineField, Scaled, Table
 from hyperfem.app.python_equivalent import plan, script
 
 __all__ = [
-    "AffineField",
     "Built",
     "Case",
     "CaseFileError",
-    "Scaled",
-    "Table",
     "build",
     "check_groups",
     "check_mesh",

@@ -12,7 +12,7 @@ the objects of that script (:class:`~hyperfem.HyperelasticProblem` or
 Between reading the mesh and building anything on it, :func:`check_mesh`
 checks every physical-group name of the case against the mesh (with a
 did-you-mean and the names that exist) and the orientation of the cells
-(:mod:`hyperfem.app.meshcheck`). A hyperfem error raised while building an
+(:mod:`hyperfem.mesh.orientation`). A hyperfem error raised while building an
 entry comes back as a :class:`~hyperfem.app.schema.CaseFileError` naming the
 case key (``bc[0]: ...``).
 """
@@ -24,11 +24,11 @@ from dataclasses import dataclass
 from mpi4py import MPI
 
 from hyperfem.app.casefile import Case
-from hyperfem.app.meshcheck import domain_orientation
 from hyperfem.app.python_equivalent import Statement, imports, plan
 from hyperfem.app.report import say, warn
 from hyperfem.app.schema import CaseFileError, suggestion
 from hyperfem.errors import HyperfemError, MeshError
+from hyperfem.mesh.orientation import domain_orientation
 
 __all__ = ["Built", "build", "build_domain", "check_dimensions", "check_groups", "check_mesh"]
 

@@ -37,7 +37,7 @@ class named). Examples: ``cases/*.toml``.
     type = "clamp"                  # hf.Clamp(boundary)
     boundary = "clamped"
     # type = "displacement": value = [...], components = ["x", ...], profile   (PrescribedDisplacement)
-    # type = "rotation": axis, center, angle (radians), profile                 (dyn.rotating_surface)
+    # type = "rotation": axis, center, angle (radians), profile                 (rotating_surface)
 
     [[load]]
     type = "dead_traction"          # | "follower_traction" | "pressure" (FollowerPressure) | "body_force"
@@ -79,10 +79,10 @@ once it is read (:func:`hyperfem.app.build.check_mesh`).
 
 Load and boundary-condition *profiles* :math:`f(t)` scale the value with the
 load factor (quasi-static) or the time (dynamic); the default ``"linear"`` is
-the library's :math:`f(t) = t`. ``"steady"`` is :math:`f = 1`; a number
+the library's :math:`f(t) = t` (:func:`~hyperfem.loading.linear_profile`). ``"steady"`` is :math:`f = 1`; a number
 ``c`` is :math:`f = c`; ``{type = "ramp", t1, final, initial, t0}`` is
-:class:`~hyperfem.dynamics.Ramp`; ``{type = "table", times, values}`` is
-:class:`~hyperfem.app.functions.Table`. The ends of ramps, the table times and
+:class:`~hyperfem.loading.Ramp`; ``{type = "table", times, values}`` is
+:class:`~hyperfem.loading.Table`. The ends of ramps, the table times and
 the field output times are must-hit times of a dynamic run.
 """
 

@@ -378,7 +378,7 @@ def _demo(args) -> None:
 
 
 def _mesh(args) -> None:
-    from hyperfem.app.meshconvert import describe_msh
+    from hyperfem.mesh.convert import describe_msh
 
     if args.generator is None:
         raise ParameterError("mesh: name a generator: hyperfem mesh beam ... or hyperfem mesh fusiform ...")
@@ -420,9 +420,9 @@ def _plot(args) -> None:
 
 
 def _quality(args) -> None:
-    from hyperfem.app.meshcheck import domain_orientation
     from hyperfem.app.report import quality_table, warn
     from hyperfem.mesh.io import read_mesh
+    from hyperfem.mesh.orientation import domain_orientation
     from hyperfem.mesh.quality import POOR_QUALITY, mesh_quality
 
     domain = read_mesh(args.mesh, MPI.COMM_WORLD)
@@ -490,7 +490,7 @@ def _render_picture(args) -> None:
 
 
 def _convert(args) -> None:
-    from hyperfem.app.meshconvert import convert
+    from hyperfem.mesh.convert import convert
     from hyperfem.app.report import warn
 
     def work():

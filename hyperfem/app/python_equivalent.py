@@ -116,28 +116,30 @@ def _kwargs(values: Mapping[str, object]) -> dict[str, str]:
 
 
 # -- profiles, fields ---------------------------------------------------------------------------
+LOADING = "from hyperfem.loading import {}"
+
+
 def _profile(profile: Profile | None, explicit: bool = False) -> str | None:
     """Source of a profile; ``None`` for the library default (linear) unless ``explicit``."""
     if profile is None or profile.kind == "linear":
-        return "hf.problem.linear_profile" if explicit else None
+        return "linear_profile" if explicit else None
     if profile.kind == "steady":
-        return call("dyn.Steady", literal(profile.args["value"]))
+        return call("Steady", literal(profile.args["value"]))
     if profile.kind == "ramp":
-        return call("dyn.Ramp", **_kwargs(profile.args))
+        return call("Ramp", **_kwargs(profile.args))
     return call("Table", **_kwargs(profile.args))
 
 
-def _profile_imports(profile: Profile | None) -> tuple[str, ...]:
+def _profile_imports(profile: Profile | None, explicit: bool = False) -> tuple[str, ...]:
+    """The import line of :func:`_profile`'s source (none for the default unless ``explicit``)."""
     if profile is None or profile.kind == "linear":
-        return ()
-    if profile.kind == "table":
-        return ("from hyperfem.app.functions import Table",)
-    return ("from hyperfem import dynamics as dyn",)
+        return (LOADING.format("linear_profile"),) if explicit else ()
+    return (LOADING.format({"steady": "Steady", "ramp": "Ramp"}.get(profile.kind, "Table")),)
 
 
 def _vector_value(value: object) -> tuple[str, tuple[str, ...]]:
     if isinstance(value, Mapping):
-        return call("AffineField", **_kwargs(value)), ("from hyperfem.app.functions import AffineField",)
+        return call("AffineField", **_kwargs(value)), (LOADING.format("AffineField"),)
     return literal(value), ()
 
 
@@ -158,8 +160,8 @@ def _bc(bc: BCSpec) -> tuple[str, tuple[str, ...]]:
     args = [literal(bc.boundary), literal(bc.axis), angle]
     if bc.center is not None:
         args.append(literal(bc.center))
-    imports += ("from hyperfem import dynamics as dyn", "from hyperfem.app.functions import Scaled")
-    return call("dyn.rotating_surface", *args), imports
+    imports = (*_profile_imports(bc.profile, explicit=True), LOADING.format("Scaled, rotating_surface"))
+    return call("rotating_surface", *args), imports
 
 
 _LOAD_CLASSES = {
@@ -426,7 +428,7 @@ def _materials(case: Case) -> _Materials:
                     f"{m.key}.activation",
                     variable,
                     call("Activation", "domain.mesh", f"value={value}", f"name={literal(m.key + ' activation')}"),
-                    imports=("from hyperfem.activation import Activation", *_profile_imports(m.activation)),
+                    imports=(LOADING.format("Activation"), *_profile_imports(m.activation, explicit=True)),
                 )
             )
             activations.append(variable)

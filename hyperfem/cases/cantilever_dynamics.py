@@ -32,8 +32,8 @@ import math
 from dataclasses import dataclass
 
 from hyperfem.cases.cantilever import TEST_POINT, CantileverSpec, bend_load, twist_load
-from hyperfem.dynamics.motion import Ramp, Steady, rotating_surface
 from hyperfem.errors import ParameterError
+from hyperfem.loading import Ramp, Steady, rotating_surface
 from hyperfem.materials.neo_hookean import neo_hookean
 from hyperfem.mesh.beam import LENGTH
 from hyperfem.problem import Clamp, HyperelasticProblem, PrescribedDisplacement

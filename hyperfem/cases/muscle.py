@@ -45,7 +45,7 @@ def muscle_materials(a0, activation, bulk_factor: float = 50.0) -> dict[str, Spl
 
     Args:
         a0: Unit fibre field (e.g. :func:`~hyperfem.fibres.laplace_fibres`).
-        activation: The belly's :class:`~hyperfem.activation.Activation`.
+        activation: The belly's :class:`~hyperfem.loading.Activation`.
         bulk_factor: Multiplier of the seed bulk moduli.
 
     Returns:
@@ -75,7 +75,7 @@ def muscle_problem(
     Args:
         domain: The fusiform mesh.
         a0: Unit fibre field.
-        activation: The belly's :class:`~hyperfem.activation.Activation`
+        activation: The belly's :class:`~hyperfem.loading.Activation`
             (its schedule :math:`\alpha(t)` is evaluated at the problem time).
         experiment: One of :data:`EXPERIMENTS`.
         traction: Dead axial traction on ``insertion`` in the free experiment

@@ -1,7 +1,9 @@
 """Dynamics: implicit (incremental potentials), semi-implicit and explicit stepping, damping, mass, diagnostics.
 
 Time-integration concepts only; the reference set-ups (the dynamic
-cantilever, beam theory) live in :mod:`hyperfem.cases`. Any problem that
+cantilever, beam theory) live in :mod:`hyperfem.cases`, the time profiles and
+prescribed motions in :mod:`hyperfem.loading` (:class:`Steady`, :class:`Ramp`,
+:func:`rotating_surface`, ... are re-exported here for dynamic set-ups). Any problem that
 meets :class:`~hyperfem.problem.protocol.SolidProblem` (displacement or
 three-field) can be integrated in time.
 
@@ -23,7 +25,6 @@ from hyperfem.dynamics.explicit import ExplicitDynamics, ExplicitStage, integrat
 from hyperfem.dynamics.incremental import DisplacementBlock, DynamicState, IncrementalProblem
 from hyperfem.dynamics.integrators import BackwardEuler, GeneralizedAlpha, Newmark, QuasiStatic, TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity, lumped_mass, total_mass
-from hyperfem.dynamics.motion import Ramp, RigidRotation, Steady, rotating_surface, rotation_matrix
 from hyperfem.dynamics.realtime import RealtimeConfig, RealtimeStep, RealtimeStepper, RealtimeSummary
 from hyperfem.dynamics.semi_implicit import (
     SemiImplicitStage,
@@ -32,7 +33,8 @@ from hyperfem.dynamics.semi_implicit import (
     semi_implicit_solver,
 )
 from hyperfem.dynamics.stability import StableStep, inscribed_diameters, stable_time_step, wave_speed
-from hyperfem.solver.stepping import TimeStepping, TimeStepRecord, integrate
+from hyperfem.loading import Ramp, RigidRotation, Steady, rotating_surface, rotation_matrix
+from hyperfem.solver.stepping import TimeStepping, integrate
 
 __all__ = [
     "BackwardEuler",
@@ -57,7 +59,6 @@ __all__ = [
     "StableStep",
     "Steady",
     "TimeIntegrator",
-    "TimeStepRecord",
     "TimeStepping",
     "inscribed_diameters",
     "integrate",

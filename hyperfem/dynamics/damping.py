@@ -29,7 +29,7 @@ import ufl
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import check_nonnegative, is_finite_number
+from hyperfem.validation import check_nonnegative, is_finite_number
 
 __all__ = ["RayleighDamping", "reference_stiffness_form", "viscous_damping"]
 

@@ -32,7 +32,7 @@ from mpi4py import MPI
 from dolfinx import fem
 
 from hyperfem.dynamics.incremental import IncrementalProblem
-from hyperfem.solver.stepping import TimeStepRecord
+from hyperfem.solver.stepping import StepRecord
 from hyperfem.io.probes import PointProbe, QuadratureMinimum
 from hyperfem.io.results import on_rank0, write_json
 
@@ -74,7 +74,7 @@ class Diagnostics:
         comm = self.problem.domain.comm
         return float(comm.allreduce(fem.assemble_scalar(self._volume_current), op=MPI.SUM)) / self.reference_volume
 
-    def record(self, step: TimeStepRecord | None = None) -> dict:
+    def record(self, step: StepRecord | None = None) -> dict:
         """Append (and return) the diagnostics of the current state."""
         p = self.problem
         kinetic = p.kinetic_energy()

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import check_positive, is_finite_number
+from hyperfem.validation import check_positive, is_finite_number
 
 __all__ = ["BackwardEuler", "GeneralizedAlpha", "Newmark", "QuasiStatic", "TimeIntegrator"]
 

@@ -29,8 +29,8 @@ from mpi4py import MPI
 from dolfinx import fem, la
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import check_positive
 from hyperfem.mesh.domain import Domain
+from hyperfem.validation import check_positive
 
 __all__ = ["MassDensity", "lumped_mass", "total_mass"]
 

@@ -86,8 +86,8 @@ from hyperfem.dynamics.damping import reference_stiffness_form
 from hyperfem.dynamics.incremental import IncrementalProblem
 from hyperfem.dynamics.integrators import BackwardEuler
 from hyperfem.errors import ConvergenceError, ParameterError
-from hyperfem.materials.parameters import check_positive, is_finite_number
 from hyperfem.solver.linear import LinearSolver, rigid_body_modes
+from hyperfem.validation import check_positive, is_finite_number
 
 __all__ = ["CONFIGS", "RealtimeConfig", "RealtimeStep", "RealtimeStepper", "RealtimeSummary"]
 

@@ -45,7 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import LameParameters, check_positive
+from hyperfem.materials.parameters import LameParameters
+from hyperfem.validation import check_positive
 
 __all__ = [
     "CONSISTENT_MASS_FACTOR",

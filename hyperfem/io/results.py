@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+from mpi4py import MPI
 from dolfinx import fem, io
 
 from hyperfem.errors import OutputError
@@ -27,7 +29,10 @@ from hyperfem.errors import OutputError
 __all__ = [
     "VTXOutput",
     "XDMFOutput",
+    "abandon",
+    "abandoned",
     "ensure_output_dir",
+    "flatten_row",
     "jsonable",
     "note_overwrite",
     "on_rank0",
@@ -35,6 +40,34 @@ __all__ = [
     "vtx_steps",
     "write_json",
 ]
+
+
+_ABANDONED: list = []
+
+
+def abandon(writer) -> None:
+    """Keep a writer that failed (e.g. an ADIOS2 engine on a full disk) alive until the process ends.
+
+    Closing or destroying an ADIOS2 engine whose transport failed throws from a
+    C++ destructor, which terminates the process (SIGABRT, exit 134, after the
+    one-line error). The command line (:func:`hyperfem.cli.run`) ends such a
+    process with ``os._exit`` once its error line is out (:func:`abandoned`).
+    """
+    _ABANDONED.append(writer)
+
+
+def abandoned() -> bool:
+    """Whether a writer was abandoned in this process (then exit without destructors)."""
+    return bool(_ABANDONED)
+
+
+def _adios_reason(exc: BaseException) -> str:
+    """The part of an ADIOS2 exception that says what went wrong (``No space left on device``)."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip()
+    match = re.search(r"errno = \d+: ([^\n]+)", text)
+    if match:
+        return match.group(1).strip()
+    return text.splitlines()[-1].strip() if text else type(exc).__name__
 
 
 def _reason(exc: BaseException) -> str:
@@ -149,6 +182,33 @@ def jsonable(obj):
     return obj
 
 
+def flatten_row(row: dict) -> dict:
+    """A row of a run's summary as CSV columns: scalars as they are, lists of numbers spread out.
+
+    A list (tuple, array) ``name`` becomes the columns ``name_0, name_1, ...``;
+    nested ones ``name_0_1`` (row-major), so ``{"u": [[1, 2]]}`` gives
+    ``{"u_0_0": 1.0, "u_0_1": 2.0}``. This is how
+    :class:`~hyperfem.simulation.outputs.CSVLog` writes a row, and how
+    :func:`~hyperfem.simulation.plots.read_rows` reads the rows of a JSON
+    summary as columns of the CSV.
+
+    Args:
+        row: Column name → scalar or (nested) list of numbers.
+
+    Returns:
+        Column name → scalar.
+    """
+    flat = {}
+    for key, value in row.items():
+        if isinstance(value, (list, tuple, np.ndarray)):
+            array = np.asarray(value, dtype=float)
+            for index in np.ndindex(array.shape):
+                flat["_".join([key, *map(str, index)])] = float(array[index])
+        else:
+            flat[key] = value
+    return flat
+
+
 def write_json(path: str | Path, data: dict, comm) -> Path:
     """Write ``data`` as JSON from rank 0 (all ranks must call it).
 
@@ -167,8 +227,12 @@ def write_json(path: str | Path, data: dict, comm) -> Path:
         text = json.dumps(jsonable(data), indent=2, default=str) + "\n"
         path.parent.mkdir(parents=True, exist_ok=True)
         partial = path.with_name(f".{path.name}.partial")
-        partial.write_text(text)
-        os.replace(partial, path)
+        try:
+            partial.write_text(text)
+            os.replace(partial, path)
+        except OSError:
+            partial.unlink(missing_ok=True)  # a full disk leaves the previous version and no stray file
+            raise
 
     on_rank0(comm, write, f"cannot write {path}")
     return path
@@ -209,17 +273,50 @@ class VTXOutput:
             g = fem.Function(V, name=f.name)
             self._pairs.append((f, g))
             out.append(g)
+        self._comm = comm
         self._writer = io.VTXWriter(comm, str(self.path), out, engine="BP4")
 
     def write(self, t: float) -> None:
-        """Interpolate the functions into the output space and append a frame at time ``t``."""
+        """Interpolate the functions into the output space and append a frame at time ``t``.
+
+        Raises:
+            OutputError: On every rank, if ADIOS2 could not write the frame (e.g. a full disk).
+        """
+        if self._writer is None:
+            raise OutputError(f"cannot write {self.path}: the file failed before and was abandoned")
         for f, g in self._pairs:
             g.interpolate(f)
-        self._writer.write(float(t))
+        error = ""
+        try:
+            self._writer.write(float(t))
+        except RuntimeError as exc:
+            error = _adios_reason(exc)
+        errors = [e for e in self._comm.allgather(error) if e]
+        if errors:
+            self._abandon()
+            raise OutputError(f"cannot write {self.path}: {errors[0]}")
+
+    def _abandon(self) -> None:
+        """Give up the writer without closing it (see :func:`abandon`)."""
+        if self._writer is not None:
+            abandon(self._writer)
+            self._writer = None
 
     def close(self) -> None:
-        """Close the file."""
-        self._writer.close()
+        """Close the file (nothing to do after a failed write)."""
+        if self._writer is None:
+            return
+        failed = False
+        try:
+            self._writer.close()
+        except RuntimeError:
+            failed = True
+        # ADIOS2 closes collectively, but its files (profiling.json) are written by rank 0 alone:
+        # where any rank failed, every rank keeps its writer (its destructor would throw again).
+        if self._comm.allreduce(failed, op=MPI.LOR):
+            self._abandon()
+            return
+        self._writer = None
 
     def __enter__(self) -> VTXOutput:
         return self

@@ -50,8 +50,9 @@ import ufl
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import cofactor
-from hyperfem.materials.parameters import LameParameters, check_positive
+from hyperfem.materials.parameters import LameParameters
 from hyperfem.materials.polar import RotationField
+from hyperfem.validation import check_positive
 
 __all__ = [
     "ARAP",

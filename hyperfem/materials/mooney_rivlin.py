@@ -24,8 +24,8 @@ import ufl
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import isochoric_invariants, jacobian, plane_strain_3d, right_cauchy_green
-from hyperfem.materials.parameters import check_positive, is_finite_number
 from hyperfem.materials.volumetric import volumetric_energy, volumetric_law
+from hyperfem.validation import check_positive, is_finite_number
 
 __all__ = [
     "MooneyRivlinParameters",

@@ -49,8 +49,8 @@ import ufl
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import right_cauchy_green
 from hyperfem.materials.mooney_rivlin import mooney_rivlin_isochoric, mooney_rivlin_isochoric_stress
-from hyperfem.materials.parameters import check_positive, is_finite_number
 from hyperfem.materials.volumetric import volumetric_energy, volumetric_law
+from hyperfem.validation import check_positive, is_finite_number
 
 __all__ = [
     "MuscleParameters",
@@ -70,10 +70,6 @@ __all__ = [
 
 Expr = ufl.core.expr.Expr
 Scalar = float | Expr
-
-
-def _finite(value) -> bool:
-    return is_finite_number(value)
 
 
 @dataclass(frozen=True)
@@ -107,12 +103,12 @@ class MuscleParameters:
         check_positive("c1", self.c1, where)
         for name in ("c2", "T_max", "P1"):
             value = getattr(self, name)
-            if not (_finite(value) and value >= 0):
+            if not (is_finite_number(value) and value >= 0):
                 raise ParameterError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
         check_positive("K", self.K, where)
         check_positive("lambda_ofl", self.lambda_ofl, where)
         check_positive("P2", self.P2, where)
-        if not (_finite(self.l_star) and self.l_star > 1.0):
+        if not (is_finite_number(self.l_star) and self.l_star > 1.0):
             raise ParameterError(f"{where}: l_star must be a finite number > 1, got {self.l_star!r}")
         volumetric_law(self.volumetric)
 

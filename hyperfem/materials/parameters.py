@@ -9,30 +9,14 @@ built from Young's modulus and Poisson's ratio:
 
 from __future__ import annotations
 
-import math
-import numbers
 from dataclasses import dataclass
 
 from hyperfem.errors import ParameterError
 
-__all__ = ["LameParameters", "check_nonnegative", "check_positive", "is_finite_number"]
+# hyperfem/solver/stepping.py still imports these two from here (to be switched to hyperfem.validation).
+from hyperfem.validation import check_positive, is_finite_number
 
-
-def is_finite_number(value) -> bool:
-    """Whether ``value`` is a finite real number (Python or NumPy; ``bool`` is not a number here)."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
-
-
-def check_positive(name: str, value: float, where: str) -> None:
-    """Raise :class:`ParameterError` unless ``value`` is a finite number > 0 (rejects nan and inf)."""
-    if not (is_finite_number(value) and value > 0):
-        raise ParameterError(f"{where}: {name} must be a finite number > 0, got {value!r}")
-
-
-def check_nonnegative(name: str, value: float, where: str) -> None:
-    """Raise :class:`ParameterError` unless ``value`` is a finite number >= 0 (rejects nan and inf)."""
-    if not (is_finite_number(value) and value >= 0):
-        raise ParameterError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
+__all__ = ["LameParameters"]
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,8 @@ import ufl
 
 from hyperfem.kinematics import cofactor, plane_strain_3d
 from hyperfem.materials.invertibility import invertible
-from hyperfem.materials.parameters import LameParameters, check_positive
+from hyperfem.materials.parameters import LameParameters
+from hyperfem.validation import check_positive
 
 __all__ = ["StableNeoHookeanParameters", "stable_neo_hookean", "stable_neo_hookean_stress"]
 

@@ -1,7 +1,9 @@
 """Meshes: reading gmsh files, named groups, geometry generators, and the checks made on them.
 
-:mod:`~hyperfem.mesh.budget` (the size guard) and :mod:`~hyperfem.mesh.orientation`
-(inverted and degenerate cells) are submodules.
+:mod:`~hyperfem.mesh.budget` (the size guard), :mod:`~hyperfem.mesh.orientation`
+(inverted and degenerate cells), :mod:`~hyperfem.mesh.convert` (``hyperfem convert``:
+other formats → gmsh, via meshio) and :mod:`~hyperfem.mesh.abaqus` (Abaqus ``.inp``
+sets and surfaces for it) are submodules.
 """
 
 from hyperfem.mesh.beam import BEAM_GROUPS, beam_mesh, write_beam_mesh

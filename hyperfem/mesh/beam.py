@@ -18,12 +18,12 @@ from pathlib import Path
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import is_finite_number
 from hyperfem.io.results import ensure_output_dir
 from hyperfem.mesh.budget import check_mesh_size
 from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.gmsh_session import distribute_model, gmsh_session
 from hyperfem.mesh.io import domain_from_meshdata
+from hyperfem.validation import is_finite_number
 
 __all__ = ["BEAM_GROUPS", "beam_mesh", "write_beam_mesh"]
 

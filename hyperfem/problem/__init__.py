@@ -1,10 +1,10 @@
 """Boundary-value problems: energies, loads and Dirichlet conditions by name."""
 
 from hyperfem.problem.base import EnergyProblem
-from hyperfem.problem.boundary_conditions import Clamp, PrescribedDisplacement, linear_profile
+from hyperfem.problem.boundary_conditions import Clamp, PrescribedDisplacement
 from hyperfem.problem.hyperelastic import EnergyDensity, HyperelasticProblem, default_quadrature_degree
 from hyperfem.problem.loads import BodyForce, DeadTraction, FollowerPressure, FollowerTraction
-from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, SplitEnergy, solid_problem
+from hyperfem.problem.mixed import MixedHyperelasticProblem, SplitEnergy, solid_problem
 
 __all__ = [
     "BodyForce",
@@ -17,9 +17,7 @@ __all__ = [
     "HyperelasticProblem",
     "MixedHyperelasticProblem",
     "PrescribedDisplacement",
-    "ReactionForce",
     "SplitEnergy",
     "default_quadrature_degree",
-    "linear_profile",
     "solid_problem",
 ]

@@ -10,8 +10,8 @@
   not get what it asks for.
 
 Values are scaled by ``profile(s)`` where ``s`` is the load factor (or time),
-so a prescribed displacement ramps with the load unless a profile says
-otherwise. A callable ``value(x, s)`` of two arguments is re-evaluated for
+so a prescribed displacement ramps with the load unless a profile
+(:mod:`hyperfem.loading.profiles`) says otherwise. A callable ``value(x, s)`` of two arguments is re-evaluated for
 each ``s`` instead (e.g. a rigid rotation of a surface).
 """
 
@@ -28,15 +28,11 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
+from hyperfem.loading.profiles import linear_profile
 from hyperfem.mesh.domain import Domain
-from hyperfem.problem.validation import check_callable, check_finite_vector, check_name
+from hyperfem.validation import check_callable, check_finite_vector, check_name
 
-__all__ = ["BoundaryCondition", "Clamp", "DirichletAgreement", "PrescribedDisplacement", "linear_profile"]
-
-
-def linear_profile(s: float) -> float:
-    """The identity profile: the value is scaled by the load factor ``s``."""
-    return s
+__all__ = ["BoundaryCondition", "Clamp", "DirichletAgreement", "PrescribedDisplacement"]
 
 
 @dataclass(frozen=True)

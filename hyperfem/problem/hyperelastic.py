@@ -45,10 +45,10 @@ from hyperfem.materials.invertibility import is_invertible
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.base import EnergyProblem
+from hyperfem.problem.energy import check_region_coverage, scalar_energy
 from hyperfem.problem.loads import Load
 from hyperfem.problem.protocol import Updater
 from hyperfem.problem.quadrature import check_volume_quadrature, volume_quadrature_degree
-from hyperfem.problem.validation import check_region_coverage, scalar_energy
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
 
@@ -89,7 +89,7 @@ class HyperelasticProblem(EnergyProblem):
             :func:`default_quadrature_degree` for the mesh's cell type
             (on hexahedra and quadrilaterals a degree counts per direction).
         updaters: Objects with ``update(t)`` that :meth:`set_time` calls
-            (e.g. :class:`~hyperfem.activation.Activation`); the energies'
+            (e.g. :class:`~hyperfem.loading.Activation`); the energies'
             own ``updaters`` are added (each once).
         invertible: Whether the energies tolerate :math:`J \\le 0` (the solver
             may then drop its inversion guard); ``None``: inferred, ``True``

@@ -26,9 +26,9 @@ from dolfinx import fem
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import cofactor
-from hyperfem.problem.boundary_conditions import linear_profile
+from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.quadrature import load_quadrature_degree
-from hyperfem.problem.validation import check_callable, check_finite_scalar, check_finite_vector, check_name
+from hyperfem.validation import check_callable, check_finite_scalar, check_finite_vector, check_name
 
 __all__ = ["BodyForce", "DeadTraction", "FollowerPressure", "FollowerTraction", "Load", "LoadTerms", "load_terms"]
 

@@ -53,20 +53,19 @@ import ufl
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import check_positive
 from hyperfem.materials.volumetric import volumetric_law
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.hyperelastic import HyperelasticProblem, default_quadrature_degree
 from hyperfem.problem.base import EnergyProblem
+from hyperfem.problem.energy import check_energy_callable, check_region_coverage
 from hyperfem.problem.loads import Load
 from hyperfem.problem.quadrature import check_volume_quadrature
-from hyperfem.problem.validation import check_energy_callable, check_region_coverage
+from hyperfem.validation import check_positive
 
 __all__ = [
     "VOLUME_CONSISTENCY_LIMIT",
     "MixedHyperelasticProblem",
-    "ReactionForce",
     "SplitEnergy",
     "solid_problem",
 ]
@@ -143,7 +142,7 @@ class MixedHyperelasticProblem(EnergyProblem):
         quadrature_degree: Default :func:`~hyperfem.problem.default_quadrature_degree` of ``degree`` and
             the cell type (Q2 on hexahedra: 3 × 3 × 3 Gauss points).
         updaters: Objects with ``update(s)`` called by :meth:`set_load_factor`
-            (e.g. :class:`~hyperfem.activation.Activation`).
+            (e.g. :class:`~hyperfem.loading.Activation`).
 
     Attributes:
         u: The mixed unknown :math:`w = (u, p, \theta - 1)` (what the solver updates).
@@ -394,44 +393,3 @@ def solid_problem(
         psi = material.energy if isinstance(material, SplitEnergy) else {k: m.energy for k, m in material.items()}
         return HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
     raise ParameterError(f"unknown formulation {formulation!r} (use 'mixed' or 'displacement')")
-
-
-class ReactionForce:
-    r"""Total force :math:`\int_\Gamma P N\,dA` exerted on the body at a named (Dirichlet) boundary.
-
-    Computed from the residual of the stored energy,
-    :math:`R_i = \partial\Pi_\text{int}/\partial u\,[e_i \chi_\Gamma]`, with
-    :math:`\chi_\Gamma` the finite-element function that is 1 at the dofs of
-    the boundary and 0 elsewhere (exact for the discrete equilibrium). The
-    form is compiled once.
-
-    Args:
-        problem: A :class:`~hyperfem.problem.HyperelasticProblem` or
-            :class:`MixedHyperelasticProblem` (or an object wrapping one).
-        boundary: Boundary name.
-    """
-
-    def __init__(self, problem, boundary: str):
-        domain = problem.domain
-        self.comm = domain.comm
-        W = problem.u.function_space
-        mixed = getattr(problem, "saddle_point", False)
-        Vu = W.sub(0) if mixed else W
-        self._test = fem.Function(W)
-        fdim = domain.tdim - 1
-        facets = domain.facets(boundary)
-        self._dofs = []
-        for i in range(domain.gdim):
-            sub = Vu.sub(i)
-            collapsed = sub.collapse()[0]
-            self._dofs.append(fem.locate_dofs_topological((sub, collapsed), fdim, facets)[0])
-        self._form = fem.form(ufl.derivative(problem.energy_internal, problem.u, self._test))
-
-    def __call__(self) -> np.ndarray:
-        """The force vector (all ranks get the same values)."""
-        out = np.zeros(len(self._dofs))
-        for i, dofs in enumerate(self._dofs):
-            self._test.x.array[:] = 0.0
-            self._test.x.array[dofs] = 1.0
-            out[i] = fem.assemble_scalar(self._form)
-        return self.comm.allreduce(out)

@@ -103,7 +103,7 @@ def cell_field_expressions(
             whole body; needed by the stress fields.
         fibres: Unit fibre field :math:`a_0` (DG0, P1: evaluated at the cell
             field's points), for ``fibre_stretch``.
-        activation: An :class:`~hyperfem.activation.Activation` (or its
+        activation: An :class:`~hyperfem.loading.Activation` (or its
             expression), or region name → one, for ``activation``.
 
     Returns:

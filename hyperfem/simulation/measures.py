@@ -5,7 +5,7 @@ the summary:
 
 * :class:`Probe` — displacement at reference points;
 * :class:`Reaction` — force on the body at a named boundary
-  (:class:`~hyperfem.problem.ReactionForce`);
+  (:class:`~hyperfem.simulation.reactions.ReactionForce`);
 * :class:`BoundaryAverage` — mean of a displacement component over a boundary,
   :math:`\int_\Gamma u_i\,dA / |\Gamma|`;
 * :class:`RadialBulge` — largest radial displacement away from an axis,
@@ -33,8 +33,9 @@ from mpi4py import MPI
 from hyperfem.errors import ParameterError
 from hyperfem.io.probes import PointProbe
 from hyperfem.kinematics import deformation_gradient
-from hyperfem.problem.mixed import MixedHyperelasticProblem, ReactionForce, SplitEnergy
+from hyperfem.problem.mixed import MixedHyperelasticProblem, SplitEnergy
 from hyperfem.simulation.outputs import VTX, Output
+from hyperfem.simulation.reactions import ReactionForce
 from hyperfem.solver.stepping import StepRecord
 
 __all__ = [
@@ -89,7 +90,7 @@ class Probe(_Column):
 class Reaction(_Column):
     """Force the support exerts on the body at a named (Dirichlet) boundary.
 
-    From the residual of the stored energy (:class:`~hyperfem.problem.ReactionForce`);
+    From the residual of the stored energy (:class:`~hyperfem.simulation.reactions.ReactionForce`);
     for a dynamic run that of the base problem: the elastic force, without inertia.
     :class:`~hyperfem.simulation.reactions.Reactions` gives force and moment of
     every Dirichlet boundary from the full residual (loads on the boundary and,

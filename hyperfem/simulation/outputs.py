@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import fem
 
-from hyperfem.io.results import VTXOutput, XDMFOutput, ensure_output_dir, on_rank0, write_json
+from hyperfem.io.results import VTXOutput, XDMFOutput, ensure_output_dir, flatten_row, on_rank0, write_json
 from hyperfem.solver.stepping import StepRecord
 
 __all__ = [
@@ -258,19 +258,6 @@ class JSONSummary(Output):
         self.write(sim, None)
 
 
-def _flatten(row: dict) -> dict:
-    """Scalars as they are; lists of numbers as ``name_0, name_1, ...`` (nested: ``name_0_1``)."""
-    flat = {}
-    for key, value in row.items():
-        if isinstance(value, (list, tuple, np.ndarray)):
-            array = np.asarray(value, dtype=float)
-            for index in np.ndindex(array.shape):
-                flat["_".join([key, *map(str, index)])] = float(array[index])
-        else:
-            flat[key] = value
-    return flat
-
-
 class CSVLog(Output):
     """One CSV line per recorded state, appended as it is recorded.
 
@@ -293,7 +280,7 @@ class CSVLog(Output):
 
     def write(self, sim, step: StepRecord | None) -> None:
         """Append the current row."""
-        row = _flatten(sim.rows[-1])
+        row = flatten_row(sim.rows[-1])
         first = self._columns is None
         if first:
             self._columns = list(row)
@@ -310,7 +297,7 @@ class CSVLog(Output):
 
     def restart(self, sim, state: dict | None) -> None:
         """Rewrite the file with the rows kept in the checkpoint."""
-        rows = [_flatten(row) for row in sim.rows]
+        rows = [flatten_row(row) for row in sim.rows]
         self._columns = list(rows[0]) if rows else None
         columns = self._columns
 

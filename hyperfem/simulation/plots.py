@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from hyperfem.errors import OutputError, ParameterError
-from hyperfem.simulation.outputs import _flatten, read_convergence
+from hyperfem.io.results import flatten_row
+from hyperfem.simulation.outputs import read_convergence
 
 __all__ = [
     "dynamics_time_series",
@@ -110,7 +111,7 @@ def read_rows(source: str | Path) -> list[dict[str, float]]:
             data = json.loads(source.read_text())
             if "rows" not in data:
                 raise OutputError(f"{source}: the summary has no rows (written with rows=False; use the CSV)")
-            raw = [_flatten(row) for row in data["rows"]]
+            raw = [flatten_row(row) for row in data["rows"]]
     except (OSError, ValueError) as exc:
         raise OutputError(f"cannot read {source}: {exc}") from None
     if not raw:

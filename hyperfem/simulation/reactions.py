@@ -27,7 +27,7 @@ Which residual:
 * three-field problem: the displacement rows of its residual (pressure and
   volume rows are never constrained), so the stress is that of the mixed
   solution; without loads on the boundary this is
-  :class:`~hyperfem.problem.ReactionForce`;
+  :class:`ReactionForce`;
 * dynamic run (:class:`~hyperfem.dynamics.IncrementalProblem`): the balance of
   momentum at the recorded time :math:`t_{n+1}`, inertia and damping included,
 
@@ -93,7 +93,15 @@ from hyperfem.errors import ParameterError
 from hyperfem.simulation.outputs import Output
 from hyperfem.solver.stepping import StepRecord
 
-__all__ = ["SHARED", "TOTAL", "DirichletReactions", "ReactionResult", "Reactions", "dirichlet_boundaries"]
+__all__ = [
+    "SHARED",
+    "TOTAL",
+    "DirichletReactions",
+    "ReactionForce",
+    "ReactionResult",
+    "Reactions",
+    "dirichlet_boundaries",
+]
 
 TOTAL = "total"
 """Name of the set that sums every constrained dof once (moment about the origin)."""
@@ -195,6 +203,47 @@ def first_piola_stress(base) -> ufl.core.expr.Expr | None:
         part = part if chi is None else chi * part
         P = part if P is None else P + part
     return P
+
+
+class ReactionForce:
+    r"""Total force :math:`\int_\Gamma P N\,dA` exerted on the body at a named (Dirichlet) boundary.
+
+    Computed from the residual of the stored energy,
+    :math:`R_i = \partial\Pi_\text{int}/\partial u\,[e_i \chi_\Gamma]`, with
+    :math:`\chi_\Gamma` the finite-element function that is 1 at the dofs of
+    the boundary and 0 elsewhere (exact for the discrete equilibrium). The
+    form is compiled once.
+
+    Args:
+        problem: A :class:`~hyperfem.problem.HyperelasticProblem` or
+            :class:`~hyperfem.problem.MixedHyperelasticProblem` (or an object wrapping one).
+        boundary: Boundary name.
+    """
+
+    def __init__(self, problem, boundary: str):
+        domain = problem.domain
+        self.comm = domain.comm
+        W = problem.u.function_space
+        mixed = getattr(problem, "saddle_point", False)
+        Vu = W.sub(0) if mixed else W
+        self._test = fem.Function(W)
+        fdim = domain.tdim - 1
+        facets = domain.facets(boundary)
+        self._dofs = []
+        for i in range(domain.gdim):
+            sub = Vu.sub(i)
+            collapsed = sub.collapse()[0]
+            self._dofs.append(fem.locate_dofs_topological((sub, collapsed), fdim, facets)[0])
+        self._form = fem.form(ufl.derivative(problem.energy_internal, problem.u, self._test))
+
+    def __call__(self) -> np.ndarray:
+        """The force vector (all ranks get the same values)."""
+        out = np.zeros(len(self._dofs))
+        for i, dofs in enumerate(self._dofs):
+            self._test.x.array[:] = 0.0
+            self._test.x.array[dofs] = 1.0
+            out[i] = fem.assemble_scalar(self._form)
+        return self.comm.allreduce(out)
 
 
 class DirichletReactions:

@@ -18,7 +18,7 @@ Where the groups come from, in this order:
 3. else the whole volume is region ``domain`` and its exterior faces boundary ``boundary``.
 
 Abaqus ``*SURFACE`` definitions (which meshio drops) are read by
-:mod:`hyperfem.app.abaqus` and become boundaries of their name (6-node
+:mod:`hyperfem.mesh.abaqus` and become boundaries of their name (6-node
 triangles for C3D10): ``TYPE=ELEMENT`` by element label or element set and
 face ``S1`` … ``S4`` (without a face: the element's exterior faces),
 ``TYPE=NODE`` by nodes or node sets. In a file with surfaces the sets are read
@@ -38,7 +38,7 @@ Refused with a specific message: a file without tetrahedra (a surface mesh),
 mixed volume cells (tetrahedra with hexahedra, wedges, pyramids), other
 volume cells, linear and quadratic cells together, overlapping cell sets,
 degenerate tetrahedra, and inverted (negatively oriented) tetrahedra unless
-``reorient=True`` (:mod:`hyperfem.app.meshcheck`).
+``reorient=True`` (:mod:`hyperfem.mesh.orientation`).
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hyperfem.app.abaqus import faces, has_surfaces, read_inp
-from hyperfem.app.meshcheck import orientation
+from hyperfem.mesh.abaqus import faces, has_surfaces, read_inp
+from hyperfem.mesh.orientation import orientation
 from hyperfem.errors import MeshError, MeshFileNotFoundError, ParameterError
 
 __all__ = ["NAMED_DIMS", "TAG_ARRAYS", "Conversion", "convert", "describe_msh", "parse_names"]

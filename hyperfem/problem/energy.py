@@ -1,82 +1,23 @@
-"""Checks of user input to problems, loads and boundary conditions, at construction.
+"""The strain energy a problem is given, checked at construction: a scalar of F, on regions that cover the mesh.
 
 Every check raises :class:`~hyperfem.errors.ParameterError` with a one-line
-message naming the object (``where``) and the offending entry, before any form
-is compiled or assembled. The checks are deterministic functions of their
-arguments, so every MPI rank raises the same error.
+message naming the object (``where``), before any form is compiled or
+assembled; :func:`check_region_coverage` is collective, the others are
+deterministic functions of their arguments, so every MPI rank raises the same
+error. The generic checks (finite numbers, names, callables) are in
+:mod:`hyperfem.validation`.
 """
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Callable
 
 import ufl
 
 from hyperfem.errors import HyperfemError, ParameterError
+from hyperfem.validation import check_callable, is_real
 
-__all__ = [
-    "check_callable",
-    "check_region_coverage",
-    "check_energy_callable",
-    "check_finite_scalar",
-    "check_finite_vector",
-    "check_name",
-    "scalar_energy",
-]
-
-_AXES = "xyz"
-
-
-def _is_real(value) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
-def check_name(name, what: str, where: str, optional: bool = False) -> None:
-    """A physical-group name must be a non-empty string (or ``None`` if ``optional``)."""
-    if optional and name is None:
-        return
-    if not (isinstance(name, str) and name):
-        kind = "a physical-group name (str) or None" if optional else "a physical-group name (non-empty str)"
-        raise ParameterError(f"{where}: {what} must be {kind}, got {name!r}")
-
-
-def check_finite_scalar(value, where: str, what: str = "value") -> float:
-    """Return ``float(value)``; raise unless it is a finite real number."""
-    if not _is_real(value):
-        raise ParameterError(f"{where}: {what} must be a finite number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ParameterError(f"{where}: {what} must be a finite number, got {value!r}")
-    return value
-
-
-def check_finite_vector(value, where: str, what: str = "value") -> tuple[float, ...]:
-    """Return the components of ``value`` as floats; raise unless each is a finite real number."""
-    if isinstance(value, (str, bytes)) or _is_real(value):
-        raise ParameterError(f"{where}: {what} must be a sequence of numbers or a callable, got {value!r}")
-    try:
-        items = list(value)
-    except TypeError:
-        raise ParameterError(
-            f"{where}: {what} must be a sequence of numbers or a callable, got {type(value).__name__}"
-        ) from None
-    if not items:
-        raise ParameterError(f"{where}: {what} is empty")
-    out = []
-    for i, v in enumerate(items):
-        label = f"component {i} ({_AXES[i]})" if i < len(_AXES) else f"component {i}"
-        if not (_is_real(v) and math.isfinite(float(v))):
-            raise ParameterError(f"{where}: {what} {label} must be a finite number, got {v!r}")
-        out.append(float(v))
-    return tuple(out)
-
-
-def check_callable(value, where: str, what: str) -> None:
-    """``value`` must be callable."""
-    if not callable(value):
-        raise ParameterError(f"{where}: {what} must be callable, got {value!r}")
+__all__ = ["check_energy_callable", "check_region_coverage", "scalar_energy"]
 
 
 def scalar_energy(psi: Callable, F: ufl.core.expr.Expr, where: str) -> ufl.core.expr.Expr:
@@ -95,7 +36,7 @@ def scalar_energy(psi: Callable, F: ufl.core.expr.Expr, where: str) -> ufl.core.
     except (ValueError, TypeError) as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ParameterError(f"{where}: evaluating the energy psi(F) failed: {first}") from exc
-    if _is_real(value):
+    if is_real(value):
         return ufl.as_ufl(float(value))
     if not isinstance(value, ufl.core.expr.Expr):
         raise ParameterError(
@@ -132,7 +73,7 @@ def check_energy_callable(psi: Callable, where: str) -> None:
             value = psi(_symbolic_deformation_gradient(gdim))
         except Exception:  # noqa: BLE001 - may need a real mesh; the problem checks again
             continue
-        if _is_real(value):
+        if is_real(value):
             return
         shape = getattr(value, "ufl_shape", None)
         if shape != () or getattr(value, "ufl_free_indices", ()):

@@ -1,9 +1,7 @@
-r"""Time profiles and prescribed rigid motions.
+r"""Prescribed rigid motions of a named surface.
 
-Loads and :class:`~hyperfem.problem.PrescribedDisplacement` values are scaled
-by ``profile(s)``; in a dynamic run ``s`` is the time :math:`t`. This module
-provides the profiles used by the seed experiments and a rigid rotation of a
-named surface:
+A rigid rotation of a surface about an axis, by an angle that follows a time
+profile (:mod:`hyperfem.loading.profiles`):
 
 .. math::
     u(X, t) = R\bigl(\theta(t)\,\hat a\bigr)(X - c) + c - X,
@@ -18,65 +16,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hyperfem.errors import ParameterError
-from hyperfem.materials.parameters import is_finite_number
-from hyperfem.problem.boundary_conditions import PrescribedDisplacement
+from hyperfem.validation import is_finite_number
 
-__all__ = ["Steady", "Ramp", "RigidRotation", "rotation_matrix", "rotating_surface"]
+if TYPE_CHECKING:
+    from hyperfem.problem.boundary_conditions import PrescribedDisplacement
 
-
-@dataclass(frozen=True)
-class Steady:
-    """The profile :math:`f(t) = c` (a load that is on from :math:`t = 0`)."""
-
-    value: float = 1.0
-
-    def __post_init__(self) -> None:
-        if not is_finite_number(self.value):
-            raise ParameterError(f"Steady: value must be a finite number, got {self.value!r}")
-
-    def __call__(self, t: float) -> float:
-        return float(self.value)
-
-
-@dataclass(frozen=True)
-class Ramp:
-    r"""Linear ramp held at its end value.
-
-    .. math::
-        f(t) = f_0 + (f_1 - f_0)\,\min\bigl(\max((t - t_0)/(t_1 - t_0), 0), 1\bigr).
-
-    Attributes:
-        t1: Time at which the ramp ends (a natural must-hit time).
-        final: Value from ``t1`` on.
-        initial: Value up to ``t0``.
-        t0: Time at which the ramp starts.
-    """
-
-    t1: float
-    final: float = 1.0
-    initial: float = 0.0
-    t0: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("t1", "final", "initial", "t0"):
-            value = getattr(self, name)
-            if not is_finite_number(value):
-                raise ParameterError(f"Ramp: {name} must be a finite number, got {value!r}")
-        if not self.t1 > self.t0:
-            raise ParameterError(f"Ramp: need t1 > t0, got t0={self.t0!r}, t1={self.t1!r}")
-
-    def __call__(self, t: float) -> float:
-        xi = min(max((float(t) - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
-        return self.initial + (self.final - self.initial) * xi
-
-    @property
-    def kinks(self) -> tuple[float, float]:
-        """Times where the profile is not smooth (``t0``, ``t1``)."""
-        return (self.t0, self.t1)
+__all__ = ["RigidRotation", "rotating_surface", "rotation_matrix"]
 
 
 def rotation_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
@@ -144,4 +94,7 @@ def rotating_surface(
     Returns:
         A :class:`~hyperfem.problem.PrescribedDisplacement` on all components.
     """
+    # Imported here: hyperfem.problem imports hyperfem.loading (its default profile).
+    from hyperfem.problem.boundary_conditions import PrescribedDisplacement
+
     return PrescribedDisplacement(boundary, RigidRotation(tuple(axis), angle, tuple(center)))
