@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import traceback
 from collections.abc import Callable
@@ -119,7 +120,16 @@ def run(main: Callable[[], object]) -> None:
     except HyperfemError as exc:
         if comm.rank == 0:
             print(f"hyperfem: error: {exc}", file=sys.stderr, flush=True)
-        sys.exit(getattr(exc, "exit_code", 1))
+        code = getattr(exc, "exit_code", 1)
+        from hyperfem.io.results import abandoned
+
+        if abandoned():
+            # A writer that failed (a full disk) would abort the process in its C++ destructor
+            # at exit: everything that could be written is written, so leave without destructors.
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+        sys.exit(code)
     except KeyboardInterrupt:
         # A second Ctrl-C (or one outside a run): stop now. Abort, so that no rank waits in a
         # collective call for this one.

@@ -306,13 +306,19 @@ def write_checkpoint(
     except OSError as exc:
         error = f"cannot write checkpoint {final} (rank {comm.rank}): {exc.strerror or exc}"
     error = _collective(comm, error)
-    if error:
-        raise OutputError(error)
-    record = {**meta, "format": FORMAT, "ranks": comm.size, "step": int(step), "functions": list(functions)}
-    if history is not None:
-        history.flush(folder, comm)
-        record["history"] = history.name
-    write_json(partial / "meta.json", record, comm)
+    try:
+        if error:
+            raise OutputError(error)
+        record = {**meta, "format": FORMAT, "ranks": comm.size, "step": int(step), "functions": list(functions)}
+        if history is not None:
+            history.flush(folder, comm)
+            record["history"] = history.name
+        write_json(partial / "meta.json", record, comm)
+    except OutputError as exc:
+        # e.g. a full disk: leave no half-written step folder behind (the previous checkpoint stays)
+        on_rank0(comm, lambda: shutil.rmtree(partial, ignore_errors=True), f"cannot remove {partial}")
+        reason = str(exc).rsplit(": ", 1)[-1]
+        raise OutputError(f"cannot write checkpoint {final}: {reason}") from None
 
     def commit() -> None:
         old = folder / f"{final.name}.old"

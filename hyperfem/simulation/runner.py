@@ -367,11 +367,22 @@ class Simulation:
             raise Interrupted(f"{what} after step {self.step}, t = {self.time:g}", self.time)
 
     def _close(self, started: list) -> None:
-        """Stop the clock and close the outputs still open (in order; each once)."""
+        """Stop the clock and close the outputs still open (in order; each once).
+
+        Every output is closed even when one fails (a full disk: the summary cannot be
+        written, but the field files must still be closed or abandoned); the first
+        failure is raised after the others are closed.
+        """
         if self._start is not None:
             self._wall, self._start = _time.perf_counter() - self._start, None
+        first: Exception | None = None
         while started:
-            started.pop(0).close(self)
+            try:
+                started.pop(0).close(self)
+            except Exception as exc:  # noqa: BLE001 - re-raised below, after the other outputs are closed
+                first = first or exc
+        if first is not None:
+            raise first
 
     def _accept(self, record: StepRecord | None, initial: SolveRecord | None) -> None:
         if record is not None:
