@@ -316,7 +316,9 @@ def newton_convergence(source: str | Path, *, output: str | Path | None = None, 
     ax.set_title(_title(_run_summary(path), "Newton convergence per step"))
     ax.grid(True, which="both", alpha=0.3)
     mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(min(steps), top))
-    fig.colorbar(mappable, ax=ax, label="step")
+    bar = fig.colorbar(mappable, ax=ax, label="step")
+    bar.locator = plt.MaxNLocator(integer=True)  # steps are counted, not measured
+    bar.update_ticks()
     fig.tight_layout()
     out = Path(output) if output is not None else path.with_name(f"{path.stem}_newton.png")
     fig.savefig(out, dpi=120)
