@@ -32,7 +32,7 @@ from mpi4py import MPI  # noqa: E402, I001  (before dolfinx/petsc4py)
 import numpy as np  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
-import hyperfem.solver.newton as newton  # noqa: E402
+from hyperfem.solver.filters import STEP_SAFETY, ExactInversionFilter  # noqa: E402
 from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, twist_load  # noqa: E402
 from hyperfem.io import PointProbe  # noqa: E402
 
@@ -57,12 +57,11 @@ def run(mesh: Path, case: str, scale: float, step_filter: str, safety: float) ->
             return objective(snes_, x)
 
         snes.setObjective(counted)
+    for step_filter_ in solver.step_filters.filters:
+        if isinstance(step_filter_, ExactInversionFilter):
+            step_filter_.safety = safety
     problem.set_load_factor(1.0)
-    newton.STEP_SAFETY, saved = safety, newton.STEP_SAFETY
-    try:
-        rec = solver.solve()
-    finally:
-        newton.STEP_SAFETY = saved
+    rec = solver.solve()
     displacement = PointProbe(domain.mesh, [TEST_POINT])(problem.u)[0]
     comm = domain.comm
     entry = {
@@ -94,7 +93,7 @@ def main():
     p.add_argument("--meshes", nargs="+", default=[ROOT / "meshes" / "beam_h2.msh", ROOT / "meshes" / "beam_h1.msh"])
     p.add_argument("--cases", nargs="+", default=["bend", "twist"])
     p.add_argument("--scales", type=float, nargs="+", default=[2.0, 5.0, 20.0, 50.0, 100.0, 200.0])
-    p.add_argument("--safety", type=float, nargs="+", default=[newton.STEP_SAFETY])
+    p.add_argument("--safety", type=float, nargs="+", default=[STEP_SAFETY])
     args = p.parse_args()
     comm = MPI.COMM_WORLD
     results = []
@@ -107,7 +106,7 @@ def main():
     for mesh in map(Path, args.meshes):
         for case in args.cases:
             for scale in args.scales:
-                base, d_bis = run(mesh, case, scale, "bisection", newton.STEP_SAFETY)
+                base, d_bis = run(mesh, case, scale, "bisection", STEP_SAFETY)
                 emit(base)
                 for safety in args.safety:
                     ours, d_ex = run(mesh, case, scale, "exact", safety)

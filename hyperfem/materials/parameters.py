@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 from hyperfem.errors import ParameterError
 
-# hyperfem/solver/stepping.py still imports these two from here (to be switched to hyperfem.validation).
 from hyperfem.validation import check_positive, is_finite_number
 
 __all__ = ["LameParameters"]

@@ -1,7 +1,13 @@
 """Nonlinear solution: Newton (PETSc SNES), the linear-solver layer, and the one stepper.
 
-* :mod:`~hyperfem.solver.newton` — :class:`NewtonSolver` (energy line search,
-  inversion guard, boundary-increment predictor, round-off stop);
+* :mod:`~hyperfem.solver.newton` — :class:`NewtonSolver` (the SNES wiring and
+  the solve) and :class:`SolveRecord`, built from:
+  :mod:`~hyperfem.solver.options` (defaults, merging, the unique prefix),
+  :mod:`~hyperfem.solver.objective` (the energy line search and its round-off guard),
+  :mod:`~hyperfem.solver.filters` (the step-filter protocol, the inversion
+  filters and their composition; :mod:`~hyperfem.solver.step_filter` holds the
+  exact filter's geometry), :mod:`~hyperfem.solver.roundoff` (the round-off stop)
+  and :mod:`~hyperfem.solver.predictor` (the boundary-increment predictor);
 * :mod:`~hyperfem.solver.linear` — :class:`LinearSolver` and the automatic choice
   (MUMPS LU, or CG/GMRES + GAMG with rigid-body modes);
 * :mod:`~hyperfem.solver.constraints` — do the Dirichlet conditions fix every rigid motion;
@@ -9,6 +15,13 @@
   (quasi-static or dynamic), :func:`solve_quasistatic`.
 """
 
+from hyperfem.solver.filters import (
+    ComposedFilters,
+    ExactInversionFilter,
+    JacobianBisectionFilter,
+    NewtonStepFilter,
+    NoAdmissibleStep,
+)
 from hyperfem.solver.linear import LinearSolver, choose_linear_solver
 from hyperfem.solver.newton import DEFAULT_PETSC_OPTIONS, ROUNDOFF_FACTOR, NewtonSolver, RoundoffWarning, SolveRecord
 from hyperfem.solver.stepping import (
@@ -24,10 +37,15 @@ from hyperfem.solver.stepping import (
 
 __all__ = [
     "DEFAULT_PETSC_OPTIONS",
+    "ComposedFilters",
     "DynamicStage",
+    "ExactInversionFilter",
+    "JacobianBisectionFilter",
     "LinearSolver",
     "LoadStepping",
     "NewtonSolver",
+    "NewtonStepFilter",
+    "NoAdmissibleStep",
     "QuasiStaticStage",
     "ROUNDOFF_FACTOR",
     "RoundoffWarning",

@@ -42,7 +42,6 @@ and defaults they always had.
 from __future__ import annotations
 
 import math
-import numbers
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -52,7 +51,7 @@ import numpy as np
 from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, ParameterError
-from hyperfem.materials.parameters import check_positive, is_finite_number
+from hyperfem.validation import check_count, check_finite_scalar, check_positive, is_finite_number
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 
 __all__ = [
@@ -63,7 +62,6 @@ __all__ = [
     "Stage",
     "StepPolicy",
     "StepRecord",
-    "TimeStepRecord",
     "TimeStepping",
     "integrate",
     "run_steps",
@@ -72,16 +70,6 @@ __all__ = [
 
 LANDINGS = ("clip", "equal")
 """How steps land on must-hit times (see :class:`StepPolicy`)."""
-
-
-def _check_count(where: str, name: str, value) -> None:
-    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
-        raise ParameterError(f"{where}: {name} must be an integer >= 1, got {value!r}")
-
-
-def _check_finite(where: str, name: str, value) -> None:
-    if not is_finite_number(value):
-        raise ParameterError(f"{where}: {name} must be a finite number, got {value!r}")
 
 
 # -- policy -------------------------------------------------------------------------------
@@ -124,7 +112,7 @@ class StepPolicy:
 
     def __post_init__(self) -> None:
         where = "StepPolicy"
-        _check_finite(where, "end", self.end)
+        check_finite_scalar(self.end, where, "end")
         check_positive("increment", self.increment, where)
         for name in ("min_increment", "max_increment", "tolerance"):
             if getattr(self, name) is not None:
@@ -138,10 +126,10 @@ class StepPolicy:
             raise ParameterError(f"{where}: cutback must lie in (0, 1), got {self.cutback!r}")
         if not (is_finite_number(self.growth) and self.growth >= 1):
             raise ParameterError(f"{where}: growth must be a finite number >= 1, got {self.growth!r}")
-        _check_count(where, "grow_after", self.grow_after)
-        _check_count(where, "max_steps", self.max_steps)
+        check_count("grow_after", self.grow_after, where)
+        check_count("max_steps", self.max_steps, where)
         if self.easy_iterations is not None:
-            _check_count(where, "easy_iterations", self.easy_iterations)
+            check_count("easy_iterations", self.easy_iterations, where)
         bad = [t for t in self.must_hit if not is_finite_number(t)]
         if bad:
             raise ParameterError(f"{where}: must_hit times must be finite numbers, got {bad[0]!r}")
@@ -187,7 +175,7 @@ class LoadStepping:
         for name in ("initial_increment", "min_increment", "max_increment", "growth"):
             check_positive(name, getattr(self, name), "LoadStepping")
         for name in ("easy_iterations", "max_steps"):
-            _check_count("LoadStepping", name, getattr(self, name))
+            check_count(name, getattr(self, name), "LoadStepping")
         if not 0 < self.min_increment <= self.initial_increment <= self.max_increment:
             raise ParameterError(
                 "LoadStepping: need 0 < min_increment <= initial_increment <= max_increment, got "
@@ -247,7 +235,7 @@ class TimeStepping:
             + (("dt_min",) if self.dt_min is not None else ())
             + (("dt_max",) if self.dt_max is not None else ())
         ):
-            _check_finite(where, name, getattr(self, name))
+            check_finite_scalar(getattr(self, name), where, name)
         if not self.dt > 0:
             raise ParameterError(f"{where}: dt must be > 0, got {self.dt!r}")
         if not (self.dt_min is None or 0 < self.dt_min <= self.dt):
@@ -257,7 +245,7 @@ class TimeStepping:
         if not self.tolerance > 0:
             raise ParameterError(f"{where}: tolerance must be > 0, got {self.tolerance!r}")
         for name in ("grow_after", "max_steps"):
-            _check_count(where, name, getattr(self, name))
+            check_count(name, getattr(self, name), where)
         bad = [t for t in self.must_hit if not is_finite_number(t)]
         if bad:
             raise ParameterError(f"{where}: must_hit times must be finite numbers, got {bad[0]!r}")
@@ -367,7 +355,6 @@ class StepRecord:
         }
 
 
-TimeStepRecord = StepRecord
 """The record of an accepted time step (one record type for every run)."""
 
 

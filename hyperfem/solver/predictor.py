@@ -1,0 +1,126 @@
+r"""The boundary-increment predictor of :class:`~hyperfem.solver.NewtonSolver`.
+
+When the prescribed boundary values moved since the last solve, one linear
+solve with the tangent at the old state and the increment as a lifted
+Dirichlet condition carries the increment into the interior, instead of
+moving only the boundary nodes and squeezing the first layer of cells
+(displacement-driven loading then takes a few steps, not hundreds; see
+``tests/test_predictor.py``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc as fpetsc
+from dolfinx.la.petsc import _ghost_update
+
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.solver.state import assign_state
+
+__all__ = ["BoundaryPredictor"]
+
+MAX_PREDICTOR_HALVINGS = 8
+"""The predicted increment is halved at most this often to keep :math:`J > J_\\min`; then it is dropped."""
+
+
+class BoundaryPredictor:
+    """The predictor of one solver: its problem, assembly and work vectors.
+
+    Args:
+        problem: The problem (its unknown and Dirichlet conditions).
+        nlp: The solver's ``dolfinx.fem.petsc.NonlinearProblem`` (tangent form and matrix).
+    """
+
+    def __init__(self, problem: SolidProblem, nlp: fpetsc.NonlinearProblem):
+        self.problem = problem
+        self._nlp = nlp
+        self._state = nlp.x.duplicate()
+        self._rhs = nlp.b.duplicate()
+
+    def moved(self) -> bool:
+        """Whether the Dirichlet values differ from the current state anywhere (collective)."""
+        u = self.problem.u
+        moved = u.x.array.copy()
+        for bc in self.problem.bcs:
+            bc.set(moved)
+        local = not np.array_equal(moved, u.x.array)
+        return bool(self.problem.domain.comm.allreduce(local, op=MPI.LOR))
+
+    def lift(
+        self,
+        ksp: PETSc.KSP,
+        *,
+        refresh: Callable[[], None],
+        preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None,
+        admissible: Callable[[], bool],
+    ) -> bool:
+        r"""Move the state by the tangent response to the boundary increment.
+
+        Solves :math:`K(u_n)\,\delta u = 0` in the interior with
+        :math:`\delta u = g_{n+1} - u_n` on the Dirichlet dofs (a lifted
+        condition), with the solver's own assembly and linear solver, and
+        applies the largest fraction :math:`2^{-k}` of it that keeps the
+        state admissible (:math:`J > J_\min`).
+
+        Args:
+            ksp: The solver's KSP.
+            refresh: The solver's state hooks (run at :math:`u_n` before the assembly).
+            preconditioner: ``P(A)``, the preconditioning matrix of a tangent
+                ``A`` (``None``: ``A`` itself).
+            admissible: Whether the current state of the unknown is admissible (collective).
+
+        Returns:
+            Whether a step was applied.
+        """
+        x = self._state
+        self.problem.u.x.petsc_vec.copy(x)
+        # copy() moves the owned entries only; the lifting below reads x's ghosts too.
+        _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
+        refresh()
+        du = x.duplicate()
+        try:
+            if not self._solve(ksp, x, du, preconditioner):
+                return False
+            return self._apply(x, du, admissible)
+        finally:
+            du.destroy()
+
+    def _solve(
+        self, ksp: PETSc.KSP, x: PETSc.Vec, du: PETSc.Vec, preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None
+    ) -> bool:
+        """The lifted tangent solve for ``du``; whether it converged to a finite increment."""
+        nlp = self._nlp
+        bcs = self.problem.bcs
+        A = nlp.A
+        A.zeroEntries()
+        fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)
+        A.assemble()
+        P = None if preconditioner is None else preconditioner(A)
+        b = self._rhs
+        with b.localForm() as loc:
+            loc.set(0.0)
+        fpetsc.apply_lifting(b, [nlp.J], bcs=[bcs], x0=[x], alpha=1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
+        ksp.setOperators(A, A if P is None else P)
+        ksp.solve(b, du)
+        return ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))
+
+    def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool]) -> bool:
+        """Move the unknown to ``x + 2^-k du`` for the smallest admissible ``k``; back to ``x`` if none."""
+        u = self.problem.u
+        scale = 1.0
+        for _ in range(MAX_PREDICTOR_HALVINGS):
+            assign_state(x, u)
+            u.x.petsc_vec.axpy(scale, du)
+            u.x.scatter_forward()
+            if admissible():
+                return True
+            scale *= 0.5
+        assign_state(x, u)
+        return False
