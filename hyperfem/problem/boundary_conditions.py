@@ -163,6 +163,12 @@ class _CompiledDirichlet:
         errors = [e for e in comm.allgather(error) if e]
         if errors:
             raise ParameterError(f"{where}: evaluating the value{at} failed: {errors[0]}")
+        for g, _, _, _ in self._parts:
+            # Interpolation on the boundary's cells leaves the ghost copies of their dofs
+            # untouched; a Dirichlet dof that is a ghost here must hold its owner's value
+            # (the ghosts kept the previous one and 2-rank solves stalled). After the error
+            # agreement: a rank whose callable failed must not leave the others in the scatter.
+            g.x.scatter_forward()
         bad = 0
         for (g, _, _, _), dofs in zip(self._parts, self._boundary_dofs, strict=True):
             bs = g.function_space.dofmap.index_map_bs
@@ -184,10 +190,6 @@ class _CompiledDirichlet:
                 else:
                     row = components.index(comp)
                     g.interpolate(lambda x, f=f, row=row: f(x)[row], cells0=self._cells)
-                # Interpolation on a subset of cells leaves the ghost copies of their dofs
-                # untouched; a Dirichlet dof that is a ghost here must hold its owner's value
-                # (before, the ghosts kept the previous one and 2-rank solves stalled).
-                g.x.scatter_forward()
             else:
                 vals = [float(v) for v in value]
                 if len(vals) != len(components):
