@@ -304,7 +304,8 @@ class Simulation:
             self._close(started)
             detail = self._kept("continue with --restart from")
             if "checkpoint" not in self.files:
-                detail += " (no checkpoint output: the run cannot be continued)"
+                note = "no checkpoint output: the run cannot be continued"
+                detail = f"{detail[:-1]}; {note})" if detail else f" ({note})"
             raise Interrupted(f"{self.name}: {exc}{detail}", exc.time) from None
         except Exception as exc:
             self.error = f"{type(exc).__name__}: {exc}"
