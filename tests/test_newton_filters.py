@@ -218,3 +218,36 @@ def test_filters_are_checked():
     problem.set_load_factor(1.0)
     with pytest.raises(ParameterError, match=r"TooLong.step_fraction returned 1.5; a step fraction must be in"):
         solver.solve()
+
+
+class _OnLastRank(HalfStep):
+    """Acts on the last rank only, as a contact filter that sees a penetration on its own cells."""
+
+    def __init__(self, refuse: bool):
+        super().__init__()
+        self.refuse = refuse
+
+    def step_fraction(self, x, y):
+        comm = x.getComm().tompi4py()
+        if comm.rank != comm.size - 1:
+            return 1.0
+        if self.refuse:
+            raise NoAdmissibleStep("penetration on the last rank")
+        return 0.5
+
+
+def test_a_filter_acting_on_one_rank_acts_on_every_rank():
+    """A refusal or a shorter step on one rank is agreed on every rank (it hung the others before)."""
+    refused = _bend()
+    solver = hf.NewtonSolver(refused, step_filters=[_OnLastRank(refuse=True)])
+    refused.set_load_factor(1.0)
+    record = solver.solve()
+    assert record.reason_name == "DIVERGED_FUNCTION_DOMAIN" and record.message == "penetration on the last rank"
+    results = {}
+    for name, custom in (("one rank", _OnLastRank(refuse=False)), ("every rank", HalfStep())):
+        problem = _bend()
+        solver = hf.NewtonSolver(problem, {"snes_max_it": 200}, step_filters=[custom])
+        problem.set_load_factor(1.0)
+        results[name] = (solver.solve(raise_on_failure=True).residual_norms, problem.u.x.array.copy())
+    assert results["one rank"][0] == pytest.approx(results["every rank"][0], rel=1e-8)
+    np.testing.assert_allclose(results["one rank"][1], results["every rank"][1], rtol=0, atol=1e-12)

@@ -35,7 +35,7 @@ from collections.abc import Iterable
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from mpi4py import MPI  # noqa: F401  (before dolfinx/petsc4py)
+from mpi4py import MPI  # (before dolfinx/petsc4py)
 from petsc4py import PETSc
 
 from dolfinx import fem
@@ -259,18 +259,39 @@ class ComposedFilters:
         Raises:
             NoAdmissibleStep: From a filter, after ``y`` was scaled by its ``fraction``.
         """
+        comm = x.getComm().tompi4py()
         total = 1.0
         for step_filter in self.filters:
-            try:
-                fraction = step_filter.step_fraction(x, y)
-            except NoAdmissibleStep as refusal:
-                y.scale(refusal.fraction)
-                raise
-            fraction = _checked_fraction(fraction, step_filter)
+            fraction, refusal, error = self._agreed(comm, step_filter, x, y)
+            if error:
+                raise ParameterError(error)
+            if refusal:
+                y.scale(fraction)
+                raise NoAdmissibleStep(refusal, fraction)
             if fraction < 1.0:
                 y.scale(fraction)
                 total *= fraction
         return total
+
+    @staticmethod
+    def _agreed(comm, step_filter, x: PETSc.Vec, y: PETSc.Vec) -> tuple[float, str, str]:
+        """One filter's fraction, refusal message and error, the same on every rank (collective).
+
+        The inversion filters are collective already; a filter that looks at its own cells
+        only (a contact filter sees a penetration where it happens) may refuse or shorten on
+        one rank: without this agreement that rank's SNES stopped and the others waited.
+        """
+        refusal, error = "", ""
+        try:
+            fraction = _checked_fraction(step_filter.step_fraction(x, y), step_filter)
+        except NoAdmissibleStep as exc:
+            refusal, fraction = str(exc) or type(step_filter).__name__, exc.fraction
+        except ParameterError as exc:
+            error, fraction = str(exc), 1.0
+        fraction = comm.allreduce(float(fraction), op=MPI.MIN)
+        refusals = [r for r in comm.allgather(refusal) if r]
+        errors = [e for e in comm.allgather(error) if e]
+        return fraction, (refusals[0] if refusals else ""), (errors[0] if errors else "")
 
     def step_fraction(self, x: PETSc.Vec, y: PETSc.Vec) -> float:
         """The fraction of :meth:`apply`, on a copy of ``y``."""
@@ -302,7 +323,7 @@ class ComposedFilters:
 
 
 def _checked_fraction(fraction, step_filter) -> float:
-    """``fraction`` as a float in [0, 1], or a :class:`ParameterError` naming the filter.
+    """``fraction`` as a float in [0, 1] (0 included, see below), or a :class:`ParameterError` naming the filter.
 
     0 is let through (it zeroes the step, as the exact filter does when its
     critical step underflows); a filter that finds no admissible step should
@@ -311,7 +332,7 @@ def _checked_fraction(fraction, step_filter) -> float:
     if isinstance(fraction, numbers.Real) and not isinstance(fraction, bool) and 0.0 <= fraction <= 1.0:
         return float(fraction)
     raise ParameterError(
-        f"{type(step_filter).__name__}.step_fraction returned {fraction!r}; a step fraction must be in (0, 1] "
+        f"{type(step_filter).__name__}.step_fraction returned {fraction!r}; a step fraction must be in [0, 1] "
         "(raise NoAdmissibleStep when no step is admissible)"
     )
 
