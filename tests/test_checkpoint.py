@@ -531,3 +531,22 @@ def test_sigkill_leaves_every_completed_step_and_a_checkpoint(folder, comm):
     summary = resumed.run(restart=folder / "ckpt")
     assert summary["completed"] and summary["steps"] == reference["steps"]
     _same_rows([{k: v for k, v in r.items() if k != "pause"} for r in summary["rows"]], reference["rows"])
+
+
+def test_checkpoints_hold_the_current_state_of_nested_output_lists(folder, comm):
+    """A field writer's pending output times (a list inside a list of the output's state) are those of
+    the step of each checkpoint; the history kept the first checkpoint's, and a restart then wrote
+    frames the uninterrupted run did not."""
+    from hyperfem.simulation import FieldOutput
+
+    problem = hf.HyperelasticProblem(_box(comm), psi, bcs=[hf.Clamp("left")],
+                                     loads=[hf.DeadTraction("right", (0.0, 0.0, -3e3))])
+    times = [0.25, 0.5, 0.75, 1.0]
+    outputs = [FieldOutput(folder, fields=("displacement",), times=times, name="f"),
+               VTX(folder / "plain.bp", times=times), Checkpoint(folder / "ckpt", every=1, keep=None)]
+    policy = hf.StepPolicy(increment=0.25, easy_iterations=None, growth=1.0)
+    Simulation(problem, hf.NewtonSolver(problem), policy, outputs, name="nested").run()
+    for step in (1, 2, 3, 4):
+        meta = read_meta(folder / "ckpt" / f"step-{step:06d}", comm)
+        assert meta["outputs"][0]["state"]["writers"][0]["pending"] == times[step:]
+        assert meta["outputs"][1]["state"]["pending"] == times[step:]

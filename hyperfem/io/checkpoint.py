@@ -113,7 +113,7 @@ class History:
     def __init__(self, comm):
         token = uuid.uuid4().hex[:12] if comm.rank == 0 else None
         self.name = f"history-{comm.bcast(token, root=0)}.jsonl"
-        self._written: dict[str, list] = {}  # key -> the items in the file (the same objects as the run's)
+        self._written: dict[str, list[str]] = {}  # key -> the items in the file, as the JSON lines written
         self._inline: set[str] = set()
         self._queued: list[str] = []
 
@@ -125,12 +125,16 @@ class History:
             items: The whole list now; the items already written must be its start.
         """
         items = list(items)
+        # Compared as the text written, not as objects: an item that holds a list the run mutates
+        # later (a field writer's pending output times) would compare equal to itself and the
+        # history would keep its first value (a restart then wrote frames the run never wrote).
+        lines = [json.dumps({"k": key, "v": jsonable(v)}, default=str) + "\n" for v in items]
         done = self._written.get(key, [])
-        if key in self._inline or items[: len(done)] != done:  # not a continuation: kept in meta.json
+        if key in self._inline or lines[: len(done)] != done:  # not a continuation: kept in meta.json
             self._inline.add(key)
             return items
-        self._queued.extend(json.dumps({"k": key, "v": jsonable(v)}, default=str) + "\n" for v in items[len(done) :])
-        self._written[key] = items
+        self._queued.extend(lines[len(done) :])
+        self._written[key] = lines
         return {HISTORY_REF: self.name, "key": key, "count": len(items)}
 
     def flush(self, folder: Path, comm) -> None:
