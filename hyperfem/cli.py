@@ -103,6 +103,21 @@ def positive_int(text: str) -> int:
     return value
 
 
+def _exit_if_abandoned(code: int) -> None:
+    """Leave with ``code`` and no destructors if a failed file writer was abandoned.
+
+    A writer that failed (an ADIOS2 engine on a full disk) would abort the process in its
+    C++ destructor at exit: everything that could be written is written, so the process
+    ends without running destructors (``os._exit``, after flushing stdout and stderr).
+    """
+    from hyperfem.io.results import abandoned
+
+    if abandoned():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
 def run(main: Callable[[], object]) -> None:
     """Call ``main()``; hyperfem errors become a one-line message and exit code 1.
 
@@ -117,18 +132,12 @@ def run(main: Callable[[], object]) -> None:
     comm = MPI.COMM_WORLD
     try:
         main()
+        _exit_if_abandoned(0)
     except HyperfemError as exc:
         if comm.rank == 0:
             print(f"hyperfem: error: {exc}", file=sys.stderr, flush=True)
         code = getattr(exc, "exit_code", 1)
-        from hyperfem.io.results import abandoned
-
-        if abandoned():
-            # A writer that failed (a full disk) would abort the process in its C++ destructor
-            # at exit: everything that could be written is written, so leave without destructors.
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os._exit(code)
+        _exit_if_abandoned(code)
         sys.exit(code)
     except KeyboardInterrupt:
         # A second Ctrl-C (or one outside a run): stop now. Abort, so that no rank waits in a

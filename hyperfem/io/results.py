@@ -303,19 +303,24 @@ class VTXOutput:
             self._writer = None
 
     def close(self) -> None:
-        """Close the file (nothing to do after a failed write)."""
+        """Close the file (nothing to do after a failed write).
+
+        Raises:
+            OutputError: On every rank, if ADIOS2 could not close the file (e.g. a full disk).
+        """
         if self._writer is None:
             return
-        failed = False
+        error = ""
         try:
             self._writer.close()
-        except RuntimeError:
-            failed = True
+        except RuntimeError as exc:
+            error = _adios_reason(exc)
         # ADIOS2 closes collectively, but its files (profiling.json) are written by rank 0 alone:
         # where any rank failed, every rank keeps its writer (its destructor would throw again).
-        if self._comm.allreduce(failed, op=MPI.LOR):
+        errors = [e for e in self._comm.allgather(error) if e]
+        if errors:
             self._abandon()
-            return
+            raise OutputError(f"cannot close {self.path}: {errors[0]}")
         self._writer = None
 
     def __enter__(self) -> VTXOutput:
