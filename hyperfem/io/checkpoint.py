@@ -27,7 +27,9 @@ appended (or a run killed while appending) are ignored by an earlier one.
 A run continued from a checkpoint writes a history file of its own, so the
 checkpoints of the first run stay readable; a history file no kept
 checkpoint names is removed. A list that does not just grow at its end is
-stored in ``meta.json`` as before.
+stored in ``meta.json`` as before. A step folder is therefore read together
+with its checkpoint folder (the history file beside it): to archive or move
+one checkpoint, copy ``history-<run>.jsonl`` with it.
 
 The step folder is first written as ``step-000012.partial`` and renamed when
 complete; ``latest.json`` is replaced atomically after that, so a run killed

@@ -284,6 +284,11 @@ class DirichletAgreement:
         return values
 
     @property
+    def parametric(self) -> bool:
+        """Whether a condition of a sharing pair is given as ``value(x, s)`` (re-evaluated at every ``s``)."""
+        return any(self._compiled[k]._parametric for i, j, _ in self._pairs for k in (i, j))
+
+    @property
     def pairs(self) -> list[tuple[int, int]]:
         """Indices of the pairs of conditions that constrain common dofs."""
         return [(i, j) for i, j, _ in self._pairs]

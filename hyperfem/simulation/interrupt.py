@@ -45,7 +45,7 @@ class InterruptGuard:
     def __init__(self, comm: MPI.Comm):
         self.comm = comm
         self.signal: int = 0
-        self._first = 0.0
+        self._first: dict[int, float] = {}  # signal -> when its first copy was handled
         self._previous: dict[int, object] = {}
 
     def __enter__(self) -> InterruptGuard:
@@ -65,14 +65,16 @@ class InterruptGuard:
 
     def _handle(self, signum: int, frame) -> None:
         now = time.monotonic()
-        if self.signal == 0:
-            self.signal, self._first = signum, now
-            if self.comm.rank == 0:
-                name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-                print(f"hyperfem: {name}: stopping after the current step (again to stop at once)",
-                      file=sys.stderr, flush=True)
+        if signum not in self._first:  # the first of its kind: a request to stop after the step
+            self._first[signum] = now
+            if self.signal == 0:
+                self.signal = signum
+                if self.comm.rank == 0:
+                    name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+                    print(f"hyperfem: {name}: stopping after the current step (again to stop at once)",
+                          file=sys.stderr, flush=True)
             return
-        if now - self._first < REPEAT_GRACE:
+        if now - self._first[signum] < REPEAT_GRACE:  # the launcher's forwarded copy of the same one
             return
         previous = self._previous.pop(signum, signal.SIG_DFL)
         signal.signal(signum, previous)

@@ -373,7 +373,7 @@ def _fieldsplit_configure(problem) -> Callable[[PETSc.KSP], None]:
 
 
 def choose_linear_solver(
-    problem, threshold: int = DIRECT_THRESHOLD, mixed_threshold: int = MIXED_DIRECT_THRESHOLD
+    problem, threshold: int | None = None, mixed_threshold: int = MIXED_DIRECT_THRESHOLD
 ) -> LinearSolver:
     """The linear solver for ``problem`` (see the module docstring for the rule).
 
@@ -395,8 +395,8 @@ def choose_linear_solver(
             configure=_fieldsplit_configure(problem),
         )
     degree = V.ufl_element().embedded_superdegree
-    if degree >= 3 and threshold == DIRECT_THRESHOLD:
-        threshold = HIGH_ORDER_DIRECT_THRESHOLDS[min(degree, 4)]
+    if threshold is None:  # by degree: AMG needs far more Krylov iterations on P3 and above
+        threshold = HIGH_ORDER_DIRECT_THRESHOLDS[min(degree, 4)] if degree >= 3 else DIRECT_THRESHOLD
     if _global_size(W) < threshold:
         return LinearSolver()
     options = SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE
