@@ -265,8 +265,13 @@ def large_allowed(allow_large: bool | None = None) -> bool:
     raise ParameterError(f"{ALLOW_LARGE_ENV} must be 1 or 0, got {os.environ[ALLOW_LARGE_ENV]!r}")
 
 
-def _refuse_if_too_large(need: float, what: str, comm: MPI.Comm, allow_large: bool | None, hint: str) -> None:
-    """Raise on every rank if ``need`` bytes exceed the available memory and the user has not allowed it."""
+def _refuse_if_too_large(
+    need: float, what: str, comm: MPI.Comm, allow_large: bool | None, hint: str, on_rank0: bool = False
+) -> None:
+    """Raise on every rank if ``need`` bytes exceed the available memory and the user has not allowed it.
+
+    ``on_rank0``: the work runs on rank 0 alone (gmsh), so the limit is the memory of rank 0's node.
+    """
     error = ""
     if comm.rank == 0:  # one rank reads the environment and decides; the others follow
         try:
@@ -278,7 +283,10 @@ def _refuse_if_too_large(need: float, what: str, comm: MPI.Comm, allow_large: bo
     error, allowed = comm.bcast((error, allowed) if comm.rank == 0 else None, root=0)
     if error:
         raise ParameterError(error)
-    limit, nodes = available_memory(comm)
+    if on_rank0:
+        limit, nodes = int(comm.bcast(_mem_available() if comm.rank == 0 else None, root=0)), 1
+    else:
+        limit, nodes = available_memory(comm)
     if need <= limit or allowed:
         return
     where = "this machine has" if nodes == 1 else f"the {nodes} nodes have"
@@ -309,7 +317,7 @@ def check_mesh_size(
         f"{what}: h = {h:g} gives ~{_num(mesh.cells)} tetrahedra (~{_num(mesh.bytes / GIB)} GiB to mesh, "
         f"~{_num(solve.bytes / GIB)} GiB to solve at P1)"
     )
-    _refuse_if_too_large(mesh.bytes, summary, comm, allow_large, MESH_HINT)
+    _refuse_if_too_large(mesh.bytes, summary, comm, allow_large, MESH_HINT, on_rank0=True)  # gmsh: rank 0
     return mesh
 
 
