@@ -85,7 +85,20 @@ def make_parser() -> ArgumentParser:
     )
     p.add_argument("--version", action="store_true", help="print the hyperfem, DOLFINx and MPI versions")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    _add_run_parser(sub)
+    _add_check_parser(sub)
+    _add_schema_parser(sub)
+    _add_demo_parser(sub)
+    _add_mesh_parser(sub)
+    _add_plot_parser(sub)
+    _add_render_parser(sub)
+    _add_quality_parser(sub)
+    _add_convert_parser(sub)
+    return p
 
+
+def _add_run_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem run``: run a TOML case file."""
     r = sub.add_parser(
         "run",
         help="run a TOML case file",
@@ -120,6 +133,9 @@ def make_parser() -> ArgumentParser:
         help="replace the results of a previous run in the output folder (without it such a folder is refused)",
     )
 
+
+def _add_check_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem check``: check a case file and its mesh without solving."""
     c = sub.add_parser(
         "check",
         help="check a case file and its mesh without solving",
@@ -128,12 +144,18 @@ def make_parser() -> ArgumentParser:
     c.add_argument("case", type=Path, help="the .toml case file")
     c.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help="as for run")
 
+
+def _add_schema_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem schema``: print the keys of a case file."""
     sub.add_parser(
         "schema",
         help="print the keys of a case file",
         description="Print every section and key of a TOML case file, with the class each maps onto.",
     )
 
+
+def _add_demo_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem demo``: run one of the demos."""
     names = _demos()
     d = sub.add_parser(
         "demo",
@@ -144,6 +166,9 @@ def make_parser() -> ArgumentParser:
     d.add_argument("name", nargs="?", default=None, help="demo name (without one: list them)")
     d.add_argument("args", nargs=argparse.REMAINDER, help="arguments passed to the demo")
 
+
+def _add_mesh_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem mesh`` with its generators ``beam`` and ``fusiform``."""
     m = sub.add_parser(
         "mesh",
         help="generate a gmsh mesh",
@@ -151,7 +176,13 @@ def make_parser() -> ArgumentParser:
         "machine has available are refused with the estimate, unless --allow-large or HYPERFEM_ALLOW_LARGE=1.",
     )
     msub = m.add_subparsers(dest="generator", metavar="GENERATOR")
-    beam = msub.add_parser(
+    _add_beam_parser(msub)
+    _add_fusiform_parser(msub)
+
+
+def _add_beam_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem mesh beam``: the cantilever beam of seed 003."""
+    beam = sub.add_parser(
         "beam",
         help="the 10 x 4 x 4 m cantilever beam of seed 003",
         description="The cantilever beam, groups beam, clamped, free_end, surface.",
@@ -166,7 +197,11 @@ def make_parser() -> ArgumentParser:
         help="output .msh (default: beam_h<SIZE>.msh in the current folder; the path written is printed)",
     )
     beam.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
-    fus = msub.add_parser(
+
+
+def _add_fusiform_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem mesh fusiform``: the fusiform muscle of seed 000."""
+    fus = sub.add_parser(
         "fusiform",
         help="the fusiform muscle with tendons of seed 000",
         description="The spindle muscle: regions muscle, tendon_proximal, tendon_distal; boundaries origin, "
@@ -188,6 +223,9 @@ def make_parser() -> ArgumentParser:
     )
     fus.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
 
+
+def _add_plot_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem plot``: PNG plots of a run's output folder."""
     pl = sub.add_parser(
         "plot",
         help="plots of a run's output folder as PNG",
@@ -196,6 +234,9 @@ def make_parser() -> ArgumentParser:
     )
     pl.add_argument("folder", type=Path, help="the output folder of a run")
 
+
+def _add_render_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem render``: a PNG of the deformed body from a checkpoint."""
     rd = sub.add_parser(
         "render",
         help="a PNG of the deformed body from a run's checkpoint (needs pyvista)",
@@ -222,6 +263,9 @@ def make_parser() -> ArgumentParser:
     rd.add_argument("--scale", type=positive_float, default=None, help="displacement magnification")
     rd.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help="as for run")
 
+
+def _add_quality_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem mesh-quality``: shape-quality measures of a mesh."""
     q = sub.add_parser(
         "mesh-quality",
         help="shape-quality measures of a mesh (seed 003, section 5.6)",
@@ -232,6 +276,9 @@ def make_parser() -> ArgumentParser:
     q.add_argument("--png", type=Path, default=None, help="write histograms of the measures to this PNG")
     q.add_argument("--threshold", type=unit_interval, default=None, help="warn below this quality (default 0.1)")
 
+
+def _add_convert_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem convert``: import a tetrahedral mesh as a gmsh file."""
     v = sub.add_parser(
         "convert",
         help="import a tetrahedral mesh (meshio) as a gmsh file",
@@ -251,8 +298,6 @@ def make_parser() -> ArgumentParser:
         help="names of tagged groups, e.g. --names 1=beam,2=clamped (region:TAG=NAME or boundary:TAG=NAME where a "
         "tag is both; default: the file's names, else region_TAG / boundary_TAG)",
     )
-    return p
-
 
 # -- commands ---------------------------------------------------------------------------------------
 def _say(text: str) -> None:

@@ -89,6 +89,38 @@ _EXPLICIT = 1
 _NONFINITE = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF)
 
 
+def _checked_block(
+    base: SolidProblem,
+    density: MassDensity,
+    damping: RayleighDamping | None,
+    lame: LameParameters | None,
+    check_step: bool,
+) -> DisplacementBlock:
+    """The displacement block of ``base``, after refusing what :class:`ExplicitDynamics` cannot step."""
+    where = "ExplicitDynamics"
+    if not isinstance(base, SolidProblem):
+        raise ParameterError(f"{where}: base must meet the SolidProblem protocol, got {type(base).__name__}")
+    if not isinstance(density, MassDensity):
+        raise ParameterError(f"{where}: density must be a MassDensity, got {type(density).__name__}")
+    block = DisplacementBlock(base)
+    if not block.whole:
+        raise ParameterError(
+            f"{where}: explicit stepping needs a displacement-only state; {type(base).__name__} has "
+            "constraint fields without inertia (use IncrementalProblem)"
+        )
+    if damping is not None and damping.beta:
+        raise ParameterError(
+            f"{where}: stiffness-proportional damping (beta = {damping.beta:g}) is not supported explicitly; "
+            "use mass-proportional damping (alpha)"
+        )
+    if check_step and lame is None:
+        raise ParameterError(
+            f"{where}: pass lame= (Lame parameters of the stiffest material) for the stable step, "
+            "or check_step=False"
+        )
+    return block
+
+
 class ExplicitDynamics:
     r"""Central-difference time stepping of a displacement problem (see the module docstring).
 
@@ -130,27 +162,7 @@ class ExplicitDynamics:
         check_step: bool = True,
         linear_solver: LinearSolver | None = None,
     ):
-        where = "ExplicitDynamics"
-        if not isinstance(base, SolidProblem):
-            raise ParameterError(f"{where}: base must meet the SolidProblem protocol, got {type(base).__name__}")
-        if not isinstance(density, MassDensity):
-            raise ParameterError(f"{where}: density must be a MassDensity, got {type(density).__name__}")
-        block = DisplacementBlock(base)
-        if not block.whole:
-            raise ParameterError(
-                f"{where}: explicit stepping needs a displacement-only state; {type(base).__name__} has "
-                "constraint fields without inertia (use IncrementalProblem)"
-            )
-        if damping is not None and damping.beta:
-            raise ParameterError(
-                f"{where}: stiffness-proportional damping (beta = {damping.beta:g}) is not supported explicitly; "
-                "use mass-proportional damping (alpha)"
-            )
-        if check_step and lame is None:
-            raise ParameterError(
-                f"{where}: pass lame= (Lame parameters of the stiffest material) for the stable step, "
-                "or check_step=False"
-            )
+        block = _checked_block(base, density, damping, lame, check_step)
         self.base = base
         self.domain = base.domain
         self.degree = base.degree
@@ -170,17 +182,14 @@ class ExplicitDynamics:
             None if lame is None else stable_time_step(self.domain, lame, rho_min, safety, lumped=density.lumped)
         )
         self._ready = False
-        comm = self.domain.comm
-        self.comm = comm
+        self.comm = self.domain.comm
 
         # Dirichlet dofs (local, ghosts included) and the owned range.
-        n_local = len(self.u.x.array)
-        constrained = np.zeros(n_local, dtype=bool)
+        constrained = np.zeros(len(self.u.x.array), dtype=bool)
         for bc in base.bcs:
             constrained[bc.dof_indices()[0]] = True
         self._constrained = constrained
-        imap, bs = V.dofmap.index_map, V.dofmap.index_map_bs
-        self._owned = imap.size_local * bs
+        self._owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
 
         self._residual = fem.form(base.residual)
         self._b = fpetsc.create_vector(V)
@@ -189,27 +198,37 @@ class ExplicitDynamics:
         self.mass: fem.Function | None = None
         self._ksp: PETSc.KSP | None = None
         if self.lumped:
-            self.mass = lumped_mass(density, self.domain, V)
-            m = self.mass.x.array
-            if np.any(m[~constrained] <= 0):
-                raise ParameterError(f"{where}: the lumped mass has a non-positive entry at a free dof")
-            self._inverse_mass = np.where(constrained, 0.0, 1.0 / np.where(m > 0, m, 1.0))[: self._owned]
-            self.linear_solver_name = "none (lumped mass)"
+            self._setup_lumped_mass()
         else:
-            solver = LinearSolver(dict(MASS_SOLVER)) if linear_solver is None else linear_solver
-            test, trial = ufl.TestFunction(V), ufl.TrialFunction(V)
-            self._mass_form = fem.form(density.integral(ufl.dot(trial, test), self.domain, self.degree))
-            self._M = fpetsc.assemble_matrix(self._mass_form, bcs=base.bcs)
-            self._M.assemble()
-            self._ksp = solver.ksp(comm, self._M, kind="mass")
-            self._x = self._M.createVecRight()
-            self.linear_solver_name = describe(solver.options)
+            self._setup_consistent_mass(linear_solver)
         disp = base.displacement
         self._kinetic = fem.form(0.5 * density.integral(ufl.dot(disp(self.v), disp(self.v)), self.domain, self.degree))
         self._elastic = fem.form(base.energy_internal)
         self._external = fem.form(base.energy_external)
         self._min_J = QuadratureMinimum(self.domain.mesh, base.volume_jacobian(), base.quadrature_points())
         self.state_hooks = list(getattr(base, "state_hooks", ()))
+
+    def _setup_lumped_mass(self) -> None:
+        """The lumped (diagonal) mass and its inverse on the owned dofs (zero on Dirichlet dofs)."""
+        constrained = self._constrained
+        self.mass = lumped_mass(self.density, self.domain, self.V)
+        m = self.mass.x.array
+        if np.any(m[~constrained] <= 0):
+            raise ParameterError("ExplicitDynamics: the lumped mass has a non-positive entry at a free dof")
+        self._inverse_mass = np.where(constrained, 0.0, 1.0 / np.where(m > 0, m, 1.0))[: self._owned]
+        self.linear_solver_name = "none (lumped mass)"
+
+    def _setup_consistent_mass(self, linear_solver: LinearSolver | None) -> None:
+        """The consistent mass matrix, assembled once, and the KSP that solves with it."""
+        V = self.V
+        solver = LinearSolver(dict(MASS_SOLVER)) if linear_solver is None else linear_solver
+        test, trial = ufl.TestFunction(V), ufl.TrialFunction(V)
+        self._mass_form = fem.form(self.density.integral(ufl.dot(trial, test), self.domain, self.degree))
+        self._M = fpetsc.assemble_matrix(self._mass_form, bcs=self.base.bcs)
+        self._M.assemble()
+        self._ksp = solver.ksp(self.comm, self._M, kind="mass")
+        self._x = self._M.createVecRight()
+        self.linear_solver_name = describe(solver.options)
 
     # -- protocol (what Diagnostics and outputs use) ----------------------------
     @property

@@ -340,6 +340,50 @@ class _StepMatrices:
         self.A.setValuesCOO(csr.data[: self.nnz], PETSc.InsertMode.INSERT_VALUES)
 
 
+@dataclass
+class _Tally:
+    """Counters and timers of one :meth:`RealtimeStepper.step`."""
+
+    iterations: int = 0
+    tangents: int = 0
+    linear: int = 0
+    failures: int = 0
+    assembly: float = 0.0
+    solve: float = 0.0
+
+
+def _check_arguments(problem: object, dt: float, newton_budget: int, rtol: float, atol: float) -> None:
+    """Refuse a problem or a step setting :class:`RealtimeStepper` cannot run with."""
+    where = "RealtimeStepper"
+    if not isinstance(problem, IncrementalProblem):
+        raise ParameterError(f"{where}: problem must be an IncrementalProblem, got {type(problem).__name__}")
+    integ = problem.integrator
+    if not integ.dynamic or float(integ.alpha_f) != 0.0:
+        raise ParameterError(
+            f"{where}: needs a dynamic scheme without alpha_f (backward Euler, Newmark), got {integ.name}"
+        )
+    if not problem.displacement_block.whole:
+        raise ParameterError(f"{where}: needs a displacement base problem (mixed problems are not supported)")
+    check_positive("dt", dt, where)
+    if not (isinstance(newton_budget, int) and not isinstance(newton_budget, bool) and newton_budget >= 1):
+        raise ParameterError(f"{where}: newton_budget must be an integer >= 1, got {newton_budget!r}")
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if not (is_finite_number(value) and value >= 0):
+            raise ParameterError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
+
+
+def _resolve_config(config: str | RealtimeConfig) -> tuple[str, RealtimeConfig]:
+    """The configuration's name (``"custom"`` for an object) and the :class:`RealtimeConfig`."""
+    where = "RealtimeStepper"
+    if isinstance(config, str):
+        if config not in CONFIGS:
+            raise ParameterError(f"{where}: unknown config {config!r} (choose from {', '.join(CONFIGS)})")
+        return config, CONFIGS[config]
+    if isinstance(config, RealtimeConfig):
+        return "custom", config
+    raise ParameterError(f"{where}: config must be a name or a RealtimeConfig, got {type(config).__name__}")
+
+
 class RealtimeStepper:
     """Fixed-budget implicit steps of an :class:`~hyperfem.dynamics.IncrementalProblem` (see the module docstring).
 
@@ -390,30 +434,8 @@ class RealtimeStepper:
         form_compiler_options: dict | None = None,
         jit_options: dict | None = None,
     ):
-        where = "RealtimeStepper"
-        if not isinstance(problem, IncrementalProblem):
-            raise ParameterError(f"{where}: problem must be an IncrementalProblem, got {type(problem).__name__}")
-        integ = problem.integrator
-        if not integ.dynamic or float(integ.alpha_f) != 0.0:
-            raise ParameterError(
-                f"{where}: needs a dynamic scheme without alpha_f (backward Euler, Newmark), got {integ.name}"
-            )
-        if not problem.displacement_block.whole:
-            raise ParameterError(f"{where}: needs a displacement base problem (mixed problems are not supported)")
-        check_positive("dt", dt, where)
-        if not (isinstance(newton_budget, int) and not isinstance(newton_budget, bool) and newton_budget >= 1):
-            raise ParameterError(f"{where}: newton_budget must be an integer >= 1, got {newton_budget!r}")
-        for name, value in (("rtol", rtol), ("atol", atol)):
-            if not (is_finite_number(value) and value >= 0):
-                raise ParameterError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
-        if isinstance(config, str):
-            if config not in CONFIGS:
-                raise ParameterError(f"{where}: unknown config {config!r} (choose from {', '.join(CONFIGS)})")
-            self.config_name, config = config, CONFIGS[config]
-        elif isinstance(config, RealtimeConfig):
-            self.config_name = "custom"
-        else:
-            raise ParameterError(f"{where}: config must be a name or a RealtimeConfig, got {type(config).__name__}")
+        _check_arguments(problem, dt, newton_budget, rtol, atol)
+        self.config_name, config = _resolve_config(config)
         self.config = config
         self.problem = problem
         self.dt = float(dt)
@@ -422,13 +444,24 @@ class RealtimeStepper:
         self.raise_on_nonfinite = bool(raise_on_nonfinite)
         self.history: list[RealtimeStep] = []
         self.comm = problem.domain.comm
-        base = problem.base
-        V = problem.V
-        u = problem.u
         self._bcs = problem.bcs
+        self._compile_forms(form_compiler_options, jit_options)
+        self._allocate()
+        self._setup_linear_solver(config, petsc_options)
 
-        # -- forms, compiled once ------------------------------------------------
-        v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+        # -- step coefficients (fixed dt) -----------------------------------------------
+        self._set_dt(self.dt)
+        self._min_J = None
+        if monitor_jacobian:
+            from hyperfem.io.probes import QuadratureMinimum
+
+            self._min_J = QuadratureMinimum(problem.domain.mesh, problem.volume_jacobian(), problem.quadrature_points())
+
+    def _compile_forms(self, form_compiler_options: dict | None, jit_options: dict | None) -> None:
+        """Compile the residual, tangent, mass (and reference stiffness) forms, once."""
+        problem = self.problem
+        base, u = problem.base, problem.u
+        v, du = ufl.TestFunction(problem.V), ufl.TrialFunction(problem.V)
         disp = base.displacement
         kinetic = 0.5 * problem.density.integral(ufl.dot(disp(u), disp(u)), problem.domain, problem.degree)
         mass = ufl.derivative(ufl.derivative(kinetic, u, v), u, du)
@@ -447,7 +480,9 @@ class RealtimeStepper:
         if self._beta:
             self.forms["reference_stiffness"] = compile_(reference_stiffness_form(base.energy_internal, u, du, v))
 
-        # -- matrices: the tangent's pattern, the constant parts, assembled once --------
+    def _allocate(self) -> None:
+        """The tangent's pattern and the constant matrices (assembled once), and the work vectors."""
+        V = self.problem.V
         constants = {"mass": self.forms["mass"]}
         if self._beta:
             constants["reference_stiffness"] = self.forms["reference_stiffness"]
@@ -455,8 +490,6 @@ class RealtimeStepper:
         self.A = self._matrices.A  # the step tangent J
         self._M = self._matrices.constant["mass"]
         self._K0 = self._matrices.constant.get("reference_stiffness")
-
-        # -- vectors (allocated once) ------------------------------------------------
         self._b = fpetsc.create_vector(fem.extract_function_spaces(self.forms["residual"]))
         self._du = self.A.createVecRight()
         self._z = self.A.createVecRight()
@@ -466,27 +499,21 @@ class RealtimeStepper:
         self._w = fem.Function(V)
         self._scratch = fem.Function(V)
 
-        # -- the linear solver ---------------------------------------------------
+    def _setup_linear_solver(self, config: RealtimeConfig, petsc_options: Mapping[str, object] | None) -> None:
+        """The KSP of the configuration (GMRES/ILU for a non-conservative problem), user options over it."""
         options = dict(config.options)
-        if not problem.conservative:
+        if not self.problem.conservative:
             swap = {"cg": "gmres", "icc": "ilu"}
             options = {k: swap.get(v, v) if isinstance(v, str) else v for k, v in options.items()}
         options.update(petsc_options or {})
         self.petsc_options = options
         if config.near_nullspace:
-            self.A.setNearNullSpace(PETSc.NullSpace().create(vectors=rigid_body_modes(V, self.A), comm=self.A.comm))
+            modes = rigid_body_modes(self.problem.V, self.A)
+            self.A.setNearNullSpace(PETSc.NullSpace().create(vectors=modes, comm=self.A.comm))
         self.ksp = LinearSolver(options).ksp(self.comm, kind="realtime")
         self.ksp.setOperators(self.A, self.A)
         self._tangent_age: int | None = None  # iterations since the last assembly; None: none yet
         self._stale = False
-
-        # -- step coefficients (fixed dt) -----------------------------------------------
-        self._set_dt(self.dt)
-        self._min_J = None
-        if monitor_jacobian:
-            from hyperfem.io.probes import QuadratureMinimum
-
-            self._min_J = QuadratureMinimum(problem.domain.mesh, problem.volume_jacobian(), problem.quadrature_points())
 
     def _set_dt(self, dt: float) -> None:
         """Coefficients of the quadratic part for a step ``dt`` (the constant part ``Q`` of the tangent)."""
@@ -605,69 +632,77 @@ class RealtimeStepper:
         if abs(dt - self._step_dt) > 1e-12 * max(dt, self._step_dt):
             self._set_dt(dt)
         self._prepare(dt)
-        u = problem.u
-        cfg = self.config
-        t_asm = t_solve = 0.0
-        tangents = linear = iterations = failures = 0
+        tally = _Tally()
         t0 = time.perf_counter()
-        r0 = r = self._assemble_residual()
-        t_asm += time.perf_counter() - t0
+        r0 = self._assemble_residual()
+        tally.assembly += time.perf_counter() - t0
         tol = max(self.atol, self.rtol * r0)
-        while iterations < self.newton_budget and math.isfinite(r) and r > tol:
-            age = self._tangent_age
-            if age is None or self._stale or (cfg.tangent_every is not None and age >= cfg.tangent_every):
-                t0 = time.perf_counter()
-                self._assemble_tangent()
-                t_asm += time.perf_counter() - t0
-                self._tangent_age, self._stale = 0, False
-                tangents += 1
-            t0 = time.perf_counter()
-            self.ksp.solve(self._b, self._du)
-            t_solve += time.perf_counter() - t0
-            linear += max(int(self.ksp.getIterationNumber()), 1)
-            failures += int(self.ksp.getConvergedReason() < 0)
-            u.x.petsc_vec.axpy(-1.0, self._du)
-            u.x.scatter_forward()
-            iterations += 1
-            self._tangent_age += 1
-            t0 = time.perf_counter()
-            r_new = self._assemble_residual()
-            t_asm += time.perf_counter() - t0
-            if cfg.modified and r_new > cfg.refresh_ratio * r:
-                self._stale = True
-            r = r_new
+        r = self._newton(tally, r0, tol)
         if not math.isfinite(r) and self.raise_on_nonfinite:
             self._restore()
             self._stale = True
             raise ConvergenceError(
                 f"RealtimeStepper: residual is NaN/inf in the step to t = {problem.t_n + dt:g} "
-                f"(after {iterations} Newton iterations); state restored to t = {problem.t_n:g}",
+                f"(after {tally.iterations} Newton iterations); state restored to t = {problem.t_n:g}",
                 problem.t_n,
                 self.history,
             )
         converged = bool(r <= tol)
-        if cfg.modified and not converged:
+        if self.config.modified and not converged:
             self._stale = True  # the kept tangent no longer reaches the tolerance within the budget
         self._commit(dt)
         min_J = self._min_J() if self._min_J is not None else float("nan")
         record = RealtimeStep(
             step=len(self.history) + 1,
             time=problem.t_n,
-            iterations=iterations,
-            tangents=tangents,
-            linear_iterations=linear,
-            linear_failures=failures,
+            iterations=tally.iterations,
+            tangents=tally.tangents,
+            linear_iterations=tally.linear,
+            linear_failures=tally.failures,
             initial_residual=r0,
             residual_norm=r,
             relative_residual=r / r0 if r0 > 0 else 0.0,
             converged=converged,
             wall_time=time.perf_counter() - start,
-            assembly_time=t_asm,
-            solve_time=t_solve,
+            assembly_time=tally.assembly,
+            solve_time=tally.solve,
             min_J=min_J,
         )
         self.history.append(record)
         return record
+
+    def _newton(self, tally: _Tally, r: float, tol: float) -> float:
+        """Newton iterations from residual norm ``r`` until ``tol`` or the budget; the last residual norm."""
+        u = self.problem.u
+        cfg = self.config
+        while tally.iterations < self.newton_budget and math.isfinite(r) and r > tol:
+            self._refresh_tangent(tally)
+            t0 = time.perf_counter()
+            self.ksp.solve(self._b, self._du)
+            tally.solve += time.perf_counter() - t0
+            tally.linear += max(int(self.ksp.getIterationNumber()), 1)
+            tally.failures += int(self.ksp.getConvergedReason() < 0)
+            u.x.petsc_vec.axpy(-1.0, self._du)
+            u.x.scatter_forward()
+            tally.iterations += 1
+            self._tangent_age += 1
+            t0 = time.perf_counter()
+            r_new = self._assemble_residual()
+            tally.assembly += time.perf_counter() - t0
+            if cfg.modified and r_new > cfg.refresh_ratio * r:
+                self._stale = True
+            r = r_new
+        return r
+
+    def _refresh_tangent(self, tally: _Tally) -> None:
+        """Assemble the tangent if there is none yet, it is stale, or it is ``tangent_every`` iterations old."""
+        age, every = self._tangent_age, self.config.tangent_every
+        if age is None or self._stale or (every is not None and age >= every):
+            t0 = time.perf_counter()
+            self._assemble_tangent()
+            tally.assembly += time.perf_counter() - t0
+            self._tangent_age, self._stale = 0, False
+            tally.tangents += 1
 
     def run(self, steps: int) -> list[RealtimeStep]:
         """Take ``steps`` steps of :math:`\\Delta t`; returns their records."""

@@ -292,25 +292,7 @@ def write_checkpoint(
         partial.mkdir()
 
     on_rank0(comm, prepare, f"cannot write checkpoint {final}")
-    error = ""
-    try:
-        arrays: dict[str, np.ndarray] = {}
-        mesh = None
-        for name, f in functions.items():
-            values, indices = owned_values(f)
-            arrays[name] = values
-            arrays[f"{name}.global"] = indices
-            keys = dof_keys(f.function_space)
-            if keys is not None:
-                arrays[f"{name}.keys"] = keys
-            mesh = f.function_space.mesh
-        if mesh is not None:
-            arrays["original_cells"] = _original_cells(mesh)
-        target = partial / _rank_file(comm.rank, comm.size)
-        with open(target, "wb") as fh:
-            np.savez(fh, **arrays)
-    except OSError as exc:
-        error = f"cannot write checkpoint {final} (rank {comm.rank}): {exc.strerror or exc}"
+    error = _write_arrays(functions, partial / _rank_file(comm.rank, comm.size), final, comm.rank)
     error = _collective(comm, error)
     try:
         if error:
@@ -325,27 +307,50 @@ def write_checkpoint(
         on_rank0(comm, lambda: shutil.rmtree(partial, ignore_errors=True), f"cannot remove {partial}")
         reason = str(exc).rsplit(": ", 1)[-1]
         raise OutputError(f"cannot write checkpoint {final}: {reason}") from None
-
-    def commit() -> None:
-        old = folder / f"{final.name}.old"
-        if final.exists():  # the same step again (e.g. now completed): keep it until the new one is in place
-            if old.exists():
-                shutil.rmtree(old)
-            os.replace(final, old)  # a kill from here to the next line leaves .old, which latest.json's reader takes
-        os.replace(partial, final)
-        shutil.rmtree(old, ignore_errors=True)
-        latest = folder / ".latest.json.partial"
-        latest.write_text(json.dumps({"path": final.name, "step": int(step)}) + "\n")
-        os.replace(latest, folder / "latest.json")
-        if keep is not None:
-            done = sorted(p for p in folder.glob("step-*") if p.is_dir() and not p.name.endswith((".partial", ".old")))
-            for old in done[: max(0, len(done) - keep)]:
-                if old != final:
-                    shutil.rmtree(old, ignore_errors=True)
-        _remove_unused_histories(folder, history)
-
-    on_rank0(comm, commit, f"cannot write checkpoint {final}")
+    on_rank0(comm, lambda: _commit(folder, partial, final, step, keep, history), f"cannot write checkpoint {final}")
     return final
+
+
+def _write_arrays(functions: Mapping[str, fem.Function], target: Path, final: Path, rank: int) -> str:
+    """Write this rank's owned values (with global indices, dof keys and cells) to ``target``; the error or ``""``."""
+    try:
+        arrays: dict[str, np.ndarray] = {}
+        mesh = None
+        for name, f in functions.items():
+            values, indices = owned_values(f)
+            arrays[name] = values
+            arrays[f"{name}.global"] = indices
+            keys = dof_keys(f.function_space)
+            if keys is not None:
+                arrays[f"{name}.keys"] = keys
+            mesh = f.function_space.mesh
+        if mesh is not None:
+            arrays["original_cells"] = _original_cells(mesh)
+        with open(target, "wb") as fh:
+            np.savez(fh, **arrays)
+    except OSError as exc:
+        return f"cannot write checkpoint {final} (rank {rank}): {exc.strerror or exc}"
+    return ""
+
+
+def _commit(folder: Path, partial: Path, final: Path, step: int, keep: int | None, history: History | None) -> None:
+    """Move the written ``partial`` folder into place as ``final``, point latest.json at it, drop old ones (rank 0)."""
+    old = folder / f"{final.name}.old"
+    if final.exists():  # the same step again (e.g. now completed): keep it until the new one is in place
+        if old.exists():
+            shutil.rmtree(old)
+        os.replace(final, old)  # a kill from here to the next line leaves .old, which latest.json's reader takes
+    os.replace(partial, final)
+    shutil.rmtree(old, ignore_errors=True)
+    latest = folder / ".latest.json.partial"
+    latest.write_text(json.dumps({"path": final.name, "step": int(step)}) + "\n")
+    os.replace(latest, folder / "latest.json")
+    if keep is not None:
+        done = sorted(p for p in folder.glob("step-*") if p.is_dir() and not p.name.endswith((".partial", ".old")))
+        for old in done[: max(0, len(done) - keep)]:
+            if old != final:
+                shutil.rmtree(old, ignore_errors=True)
+    _remove_unused_histories(folder, history)
 
 
 def _remove_unused_histories(folder: Path, history: History | None) -> None:

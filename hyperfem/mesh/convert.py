@@ -47,10 +47,11 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from hyperfem.mesh.abaqus import faces, has_surfaces, read_inp
+from hyperfem.mesh.abaqus import InpModel, faces, has_surfaces, read_inp
 from hyperfem.mesh.orientation import orientation
 from hyperfem.errors import MeshError, MeshFileNotFoundError, ParameterError
 
@@ -409,19 +410,9 @@ def convert(
         MeshError: Unreadable file, no/mixed/unsupported cells, overlapping sets, degenerate
             or (without ``reorient``) inverted tetrahedra, or a result hyperfem cannot read back.
     """
-    import meshio
-
     source, target = Path(source), Path(target)
-    if not source.is_file():
-        raise MeshFileNotFoundError(f"mesh file not found: {source}")
-    if target.suffix != ".msh":
-        raise MeshError(f"{target}: convert writes gmsh files: the output must end in .msh")
-    abaqus = read_inp(source) if source.suffix.lower() == ".inp" and has_surfaces(source) else None
     notes: list[str] = []
-    mesh = _read(source, notes)
-    if abaqus is not None:
-        abaqus.match(mesh)
-        mesh.cell_sets, mesh.point_sets = abaqus.cell_sets(), abaqus.point_sets()
+    mesh, abaqus = _load(source, target, notes)
     tet, volume, facets, cautions = _blocks(mesh, source)
     cells = np.concatenate([np.asarray(mesh.cells[i].data, dtype=np.int64) for i in volume])
     points = np.asarray(mesh.points, dtype=float)
@@ -429,6 +420,60 @@ def convert(
         raise MeshError(f"{source}: planar points (2 coordinates) cannot carry tetrahedra")
 
     given = parse_names(names) if names is None or isinstance(names, str) else dict(names)
+    regions, unassigned, boundaries, from_nodes = _groups(
+        mesh, tags, given, (tet, volume, facets, cells), source, abaqus, notes
+    )
+    if abaqus is not None:
+        _add_surfaces(abaqus, mesh, cells, volume, boundaries, from_nodes, cautions, notes)
+    boundaries = _one_boundary_per_face(
+        boundaries, from_nodes, abaqus is not None, source, cautions, notes,
+        abaqus.surface_node_sets() if abaqus is not None else set(),
+    )
+    if unassigned.any():
+        cautions.append(f"{int(unassigned.sum())} of {len(cells)} tetrahedra belong to no region: region 'unassigned'")
+        regions["unassigned"] = unassigned
+
+    inverted = _orient(points, cells, tet, reorient, source, cautions)
+    _write(target, points, cells, tet, regions, boundaries, source)
+    _check_readable(target)
+    return Conversion(
+        path=target,
+        cell_type=tet,
+        cells=len(cells),
+        nodes=len(points),
+        regions={r: int(regions[r].sum()) for r in regions},
+        boundaries={b: len(f) for b, f in boundaries.items()},
+        reoriented=inverted if reorient else 0,
+        notes=notes,
+        warnings=cautions,
+    )
+
+
+def _load(source: Path, target: Path, notes: list[str]) -> tuple[Any, InpModel | None]:
+    """Check the paths and read ``source`` (with its Abaqus surfaces, where it has any)."""
+    if not source.is_file():
+        raise MeshFileNotFoundError(f"mesh file not found: {source}")
+    if target.suffix != ".msh":
+        raise MeshError(f"{target}: convert writes gmsh files: the output must end in .msh")
+    abaqus = read_inp(source) if source.suffix.lower() == ".inp" and has_surfaces(source) else None
+    mesh = _read(source, notes)
+    if abaqus is not None:
+        abaqus.match(mesh)
+        mesh.cell_sets, mesh.point_sets = abaqus.cell_sets(), abaqus.point_sets()
+    return mesh, abaqus
+
+
+def _groups(
+    mesh: Any,
+    tags: str | None,
+    given: Mapping[tuple[int | None, int], str],
+    blocks: tuple[str, list[int], list[int], np.ndarray],
+    source: Path,
+    abaqus: InpModel | None,
+    notes: list[str],
+) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray], list[str]]:
+    """Regions, unassigned cells, boundaries and node-set boundaries: from a tag array, sets, or neither."""
+    tet, volume, facets, cells = blocks
     name = _tag_array(mesh, tags, source)
     from_nodes: list[str] = []
     if name is None and given:
@@ -454,23 +499,34 @@ def convert(
         regions, unassigned = {"domain": np.ones(len(cells), dtype=bool)}, np.zeros(len(cells), dtype=bool)
         boundaries = {"boundary": _exterior_facets(cells)}
         notes.append("no tags or sets: one region 'domain', the exterior faces are boundary 'boundary'")
-    if abaqus is not None:
-        surfaces = abaqus.surfaces(cells, volume, [block.type for block in mesh.cells])
-        for surface in surfaces:
-            if surface in boundaries:
-                cautions.append(f"boundary {surface!r} is the *SURFACE of that name (the set of that name is ignored)")
-                if surface in from_nodes:
-                    from_nodes.remove(surface)
-        boundaries.update(surfaces)
-        notes.append(f"boundaries from *SURFACE: {', '.join(f'{k} ({len(v)})' for k, v in surfaces.items())}")
-    boundaries = _one_boundary_per_face(
-        boundaries, from_nodes, abaqus is not None, source, cautions, notes,
-        abaqus.surface_node_sets() if abaqus is not None else set(),
-    )
-    if unassigned.any():
-        cautions.append(f"{int(unassigned.sum())} of {len(cells)} tetrahedra belong to no region: region 'unassigned'")
-        regions["unassigned"] = unassigned
+    return regions, unassigned, boundaries, from_nodes
 
+
+def _add_surfaces(
+    abaqus: InpModel,
+    mesh: Any,
+    cells: np.ndarray,
+    volume: list[int],
+    boundaries: dict[str, np.ndarray],
+    from_nodes: list[str],
+    cautions: list[str],
+    notes: list[str],
+) -> None:
+    """Add the Abaqus ``*SURFACE`` boundaries, which replace sets of the same name (in place)."""
+    surfaces = abaqus.surfaces(cells, volume, [block.type for block in mesh.cells])
+    for surface in surfaces:
+        if surface in boundaries:
+            cautions.append(f"boundary {surface!r} is the *SURFACE of that name (the set of that name is ignored)")
+            if surface in from_nodes:
+                from_nodes.remove(surface)
+    boundaries.update(surfaces)
+    notes.append(f"boundaries from *SURFACE: {', '.join(f'{k} ({len(v)})' for k, v in surfaces.items())}")
+
+
+def _orient(
+    points: np.ndarray, cells: np.ndarray, tet: str, reorient: bool, source: Path, cautions: list[str]
+) -> int:
+    """Refuse degenerate tetrahedra and inverted ones (or, with ``reorient``, fix those in place); their count."""
     counts, inverted, degenerate = orientation(points[cells[:, :4]])
     if counts.degenerate:
         first = int(np.flatnonzero(degenerate)[0])
@@ -486,6 +542,20 @@ def convert(
             )
         cells[inverted] = cells[inverted][:, _SWAP[VOLUME[tet]]]  # facets keep their order: hyperfem ignores it
         cautions.append(f"reoriented {counts.inverted} inverted tetrahedra (swapped two vertices)")
+    return counts.inverted
+
+
+def _write(
+    target: Path,
+    points: np.ndarray,
+    cells: np.ndarray,
+    tet: str,
+    regions: Mapping[str, np.ndarray],
+    boundaries: Mapping[str, np.ndarray],
+    source: Path,
+) -> None:
+    """Write the gmsh 2.2 file: one physical group per region (dimension 3) and boundary (dimension 2)."""
+    import meshio
 
     region_names = list(regions)
     cell_tag = np.zeros(len(cells), dtype=np.int64)
@@ -508,18 +578,6 @@ def convert(
         meshio.write(target, out, file_format="gmsh22", binary=False)
     except OSError as exc:
         raise MeshError(f"{target}: cannot write: {exc.strerror or exc}") from None
-    _check_readable(target)
-    return Conversion(
-        path=target,
-        cell_type=tet,
-        cells=len(cells),
-        nodes=len(points),
-        regions={r: int(regions[r].sum()) for r in region_names},
-        boundaries={b: len(f) for b, f in boundaries.items()},
-        reoriented=counts.inverted if reorient else 0,
-        notes=notes,
-        warnings=cautions,
-    )
 
 
 def _check_readable(path: Path) -> None:

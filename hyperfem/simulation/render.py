@@ -443,6 +443,67 @@ def _bar_scale(values: np.ndarray, clim) -> tuple[float, str]:
     return 10.0**exponent, f"\u00d71e{exponent}"
 
 
+def _colour_options(
+    body: object,
+    values: np.ndarray | None,
+    where: str | None,
+    scalars: str | None,
+    scalar_bar_title: str | None,
+    cmap: str,
+    clim: tuple[float, float] | None,
+) -> dict[str, object]:
+    """The ``add_mesh`` options colouring ``body`` by ``values`` (stored on it, scaled), or one colour."""
+    if values is None:
+        return {"color": "#b9c7d6"}
+    factor, unit = _bar_scale(values, clim)
+    shown = np.asarray(values, dtype=float) / factor
+    (body.point_data if where == "point" else body.cell_data)[scalars] = shown
+    bar = {
+        "title": _with_note(scalar_bar_title or _TITLES.get(scalars, scalars), unit),
+        "vertical": True,
+        "position_x": 0.85,
+        "position_y": 0.12,
+        "width": 0.05,
+        "height": 0.72,
+        "fmt": "%.3g",
+        "color": "black",
+        "title_font_size": 14,
+        "label_font_size": 13,
+        "n_labels": 5,
+    }
+    limits = None if clim is None else (clim[0] / factor, clim[1] / factor)
+    return {"scalars": scalars, "cmap": cmap, "clim": limits, "scalar_bar_args": bar, "preference": where}
+
+
+def _add_reference(plotter: object, pv: object, surface: Surface, undeformed: str) -> None:
+    """Draw the reference body: its feature edges (``"outline"``), a wireframe, or translucent."""
+    reference = _polydata(pv, surface.points, surface.triangles)
+    if undeformed == "outline":
+        edges = reference.extract_feature_edges(
+            feature_angle=30.0, boundary_edges=True, non_manifold_edges=False, manifold_edges=False
+        )
+        plotter.add_mesh(edges, color="#505050", line_width=1.5)
+    elif undeformed == "wireframe":
+        plotter.add_mesh(reference, style="wireframe", color="#707070", line_width=0.5, opacity=0.6)
+    else:
+        plotter.add_mesh(reference, color="#c0c0c0", opacity=0.25)
+
+
+def _place_camera(
+    plotter: object, direction: np.ndarray, upward: np.ndarray, parallel: bool, zoom: float
+) -> None:
+    """Look at the centre of the bodies from ``direction``, fit them into the picture, then zoom."""
+    centre = np.asarray(plotter.bounds, dtype=float).reshape(3, 2).mean(axis=1)
+    plotter.camera.focal_point = tuple(centre)
+    plotter.camera.position = tuple(centre + direction)
+    plotter.camera.up = tuple(upward)
+    if parallel:
+        plotter.enable_parallel_projection()
+    plotter.reset_camera()
+    if zoom != 1.0:
+        plotter.camera.zoom(zoom)
+
+
 def render_surface(
     surface: Surface,
     path: str | Path,
@@ -498,51 +559,14 @@ def render_surface(
         try:
             plotter.set_background(background)
             body = _polydata(pv, surface.deformed(scale), surface.triangles)
-            options = {"color": "#b9c7d6"}
-            if values is not None:
-                factor, unit = _bar_scale(values, clim)
-                shown = np.asarray(values, dtype=float) / factor
-                (body.point_data if where == "point" else body.cell_data)[scalars] = shown
-                bar = {
-                    "title": _with_note(scalar_bar_title or _TITLES.get(scalars, scalars), unit),
-                    "vertical": True,
-                    "position_x": 0.85,
-                    "position_y": 0.12,
-                    "width": 0.05,
-                    "height": 0.72,
-                    "fmt": "%.3g",
-                    "color": "black",
-                    "title_font_size": 14,
-                    "label_font_size": 13,
-                    "n_labels": 5,
-                }
-                limits = None if clim is None else (clim[0] / factor, clim[1] / factor)
-                options = {"scalars": scalars, "cmap": cmap, "clim": limits, "scalar_bar_args": bar,
-                           "preference": where}
+            options = _colour_options(body, values, where, scalars, scalar_bar_title, cmap, clim)
             plotter.add_mesh(body, show_edges=show_edges, edge_color="#404040", line_width=0.5,
                              smooth_shading=True, split_sharp_edges=True, feature_angle=30.0, **options)
             if undeformed is not None:
-                reference = _polydata(pv, surface.points, surface.triangles)
-                if undeformed == "outline":
-                    edges = reference.extract_feature_edges(
-                        feature_angle=30.0, boundary_edges=True, non_manifold_edges=False, manifold_edges=False
-                    )
-                    plotter.add_mesh(edges, color="#505050", line_width=1.5)
-                elif undeformed == "wireframe":
-                    plotter.add_mesh(reference, style="wireframe", color="#707070", line_width=0.5, opacity=0.6)
-                else:
-                    plotter.add_mesh(reference, color="#c0c0c0", opacity=0.25)
+                _add_reference(plotter, pv, surface, undeformed)
             if title:
                 plotter.add_text(title, position="upper_left", font_size=10, color="black")
-            centre = np.asarray(plotter.bounds, dtype=float).reshape(3, 2).mean(axis=1)
-            plotter.camera.focal_point = tuple(centre)
-            plotter.camera.position = tuple(centre + direction)
-            plotter.camera.up = tuple(upward)
-            if parallel:
-                plotter.enable_parallel_projection()
-            plotter.reset_camera()
-            if zoom != 1.0:
-                plotter.camera.zoom(zoom)
+            _place_camera(plotter, direction, upward, parallel, zoom)
             try:
                 plotter.screenshot(str(path), window_size=list(size))
             except (OSError, ValueError, RuntimeError) as exc:
