@@ -75,7 +75,7 @@ from hyperfem.dynamics.stability import DEFAULT_SAFETY, StableStep, stable_time_
 from hyperfem.errors import ParameterError, SolverError
 from hyperfem.io.probes import QuadratureMinimum
 from hyperfem.materials.parameters import LameParameters
-from hyperfem.problem.protocol import SolidProblem
+from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.linear import LinearSolver, describe
 from hyperfem.solver.newton import SolveRecord
 from hyperfem.solver.stepping import StepRecord, TimeStepping, run_steps
@@ -206,7 +206,7 @@ class ExplicitDynamics:
         self._elastic = fem.form(base.energy_internal)
         self._external = fem.form(base.energy_external)
         self._min_J = QuadratureMinimum(self.domain.mesh, base.volume_jacobian(), base.quadrature_points())
-        self.state_hooks = list(getattr(base, "state_hooks", ()))
+        self.state_hooks = list(base.state_hooks) if isinstance(base, StateHookedProblem) else []
 
     def _setup_lumped_mass(self) -> None:
         """The lumped (diagonal) mass and its inverse on the owned dofs (zero on Dirichlet dofs)."""

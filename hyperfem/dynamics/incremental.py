@@ -46,7 +46,7 @@ from hyperfem.dynamics.damping import RayleighDamping, reference_stiffness_form
 from hyperfem.dynamics.integrators import TimeIntegrator
 from hyperfem.dynamics.mass import MassDensity
 from hyperfem.errors import ParameterError, SolverError
-from hyperfem.problem.protocol import SolidProblem
+from hyperfem.problem.protocol import CorrectedTangentProblem, InvertibleProblem, SolidProblem, StateHookedProblem
 from hyperfem.problem.quadrature import unify_cell_quadrature
 from hyperfem.solver.linear import LinearSolver
 
@@ -180,7 +180,7 @@ class IncrementalProblem:
         self.linear_solver = LinearSolver() if linear_solver is None else linear_solver
         # Inertia makes the tangent regular without Dirichlet conditions.
         self.rigid_motion_resisted = bool(integrator.dynamic) or base.rigid_motion_resisted
-        self.state_hooks = tuple(getattr(base, "state_hooks", ()))
+        self.state_hooks = tuple(base.state_hooks) if isinstance(base, StateHookedProblem) else ()
         self.domain = base.domain
         self.degree = base.degree
         self.quadrature_degree = base.quadrature_degree
@@ -256,12 +256,12 @@ class IncrementalProblem:
         self.energy_external = external
         self.follower_residual = follower
         self.conservative = base.conservative
-        self.invertible = bool(getattr(base, "invertible", False))
+        self.invertible = bool(base.invertible) if isinstance(base, InvertibleProblem) else False
         self.residual = ufl.derivative(internal - external, u, ufl.TestFunction(V))
         if follower is not None:
             self.residual = self.residual + follower
         self.jacobian = ufl.derivative(self.residual, u, ufl.TrialFunction(V))
-        correction = getattr(base, "tangent_correction", None)
+        correction = base.tangent_correction if isinstance(base, CorrectedTangentProblem) else None
         if correction is not None:
             # Tangent-only term of a material whose stress is exact with a frozen field
             # (fixed-corotated, ARAP: dR/dF); never part of the energy or the residual.

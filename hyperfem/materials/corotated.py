@@ -107,6 +107,8 @@ class PolarRotationEnergy(ABC):
     """
 
     invertible = True
+    updaters: tuple = ()
+    """No updaters: the rotation follows every state through :attr:`state_hooks`."""
     _name = "PolarRotationEnergy"
 
     def __init__(self, *, quadrature_degree: int | None = None, exact_tangent: bool = True):

@@ -103,6 +103,13 @@ class CorotationalLinear:
         self.field = RotationField(derivative=False, name="CorotationalLinear")
         self.updater = StepRotation(self)
 
+    state_hooks: tuple = ()
+    """No state hooks: :math:`R^n` moves once a step, through :attr:`updaters`."""
+
+    def tangent_correction(self, F: ufl.core.expr.Expr) -> None:
+        """None: :math:`R^n` is frozen over the step, the stress is the derivative of the energy."""
+        return None
+
     @property
     def updaters(self) -> tuple[StepRotation]:
         """The updaters a problem must call from ``set_time``: ``(updater,)``."""

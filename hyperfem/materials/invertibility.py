@@ -58,6 +58,7 @@ def invertible(psi: Fn, value: bool = True) -> Fn:
 
 def is_invertible(psi: Callable) -> bool:
     """Whether ``psi`` is marked invertible (its ``invertible`` attribute, or a known law)."""
+    # Boundary: psi is a user-supplied callable (function, lambda or object), marked or not.
     flag = getattr(psi, "invertible", None)
     if flag is not None:
         return bool(flag)
@@ -77,7 +78,7 @@ class _BoundLaw:
         return self.law(F, self.params)
 
     def __repr__(self) -> str:
-        return f"with_parameters({getattr(self.law, '__name__', self.law)!r}, {self.params!r})"
+        return f"with_parameters({getattr(self.law, '__name__', self.law)!r}, {self.params!r})"  # any callable
 
 
 def with_parameters(law: Callable, params) -> Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]:

@@ -208,6 +208,7 @@ class EnergyProblem:
                 vec = fem.assemble_vector(compiled)
                 ok = self.domain.comm.allreduce(bool(np.all(np.isfinite(vec.array))), op=MPI.LAND)
             if not ok:
+                # Boundary: a load names a boundary, a region, or (a user's Load) neither.
                 where = getattr(load, "boundary", None) or getattr(load, "region", None)
                 bad.append(f"{type(load).__name__}" + (f" on {where!r}" if where else ""))
         if not bad:

@@ -73,6 +73,7 @@ class PrescribedDisplacement:
         where = f"PrescribedDisplacement on {self.boundary!r}"
         if self.components is not None:
             comps = self.components
+            # Boundary: components are user input of any type; only iterability is asked of it.
             if isinstance(comps, (str, bytes)) or not hasattr(comps, "__iter__"):
                 raise ParameterError(f"{where}: components must be a sequence of integers, got {comps!r}")
             comps = list(comps)

@@ -15,9 +15,10 @@ from collections.abc import Callable
 import ufl
 
 from hyperfem.errors import HyperfemError, ParameterError
+from hyperfem.problem.protocol import EnergyProtocol
 from hyperfem.validation import check_callable, is_real
 
-__all__ = ["check_energy_callable", "check_region_coverage", "scalar_energy"]
+__all__ = ["as_energy", "check_energy_callable", "check_region_coverage", "scalar_energy"]
 
 
 def scalar_energy(psi: Callable, F: ufl.core.expr.Expr, where: str) -> ufl.core.expr.Expr:
@@ -75,6 +76,7 @@ def check_energy_callable(psi: Callable, where: str) -> None:
             continue
         if is_real(value):
             return
+        # Boundary: the user's psi may return anything, not only a UFL expression.
         shape = getattr(value, "ufl_shape", None)
         if shape != () or getattr(value, "ufl_free_indices", ()):
             raise ParameterError(
@@ -82,6 +84,63 @@ def check_energy_callable(psi: Callable, where: str) -> None:
                 + (f"a UFL expression of shape {shape}" if shape is not None else type(value).__name__)
             )
         return
+
+
+class _UserEnergy:
+    """A user's energy ``psi(F)`` seen through :class:`~hyperfem.problem.protocol.EnergyProtocol`.
+
+    Every extra the callable lacks takes its neutral value: not invertible
+    (unless a known law), no state hooks or updaters, ``bind`` a no-op, no
+    tangent correction, no fields on quadrature points. Extras are read when
+    asked for (``bind`` may set them).
+
+    Boundary: ``psi`` is a user-supplied callable, so each extra is read with
+    ``getattr`` here, and nowhere else in the library.
+    """
+
+    def __init__(self, psi: Callable):
+        self.psi = psi
+
+    @property
+    def invertible(self) -> bool:
+        from hyperfem.materials.invertibility import is_invertible
+
+        return is_invertible(self.psi)
+
+    @property
+    def state_hooks(self) -> tuple:
+        return tuple(getattr(self.psi, "state_hooks", ()))  # optional extra of a user callable
+
+    @property
+    def updaters(self) -> tuple:
+        return tuple(getattr(self.psi, "updaters", ()))  # optional extra of a user callable
+
+    @property
+    def quadrature_rule_degree(self) -> int | None:
+        return getattr(self.psi, "quadrature_rule_degree", None)  # optional extra of a user callable
+
+    def __call__(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        return self.psi(F)
+
+    def bind(self, F: ufl.core.expr.Expr, quadrature_degree: int) -> None:
+        bind = getattr(self.psi, "bind", None)  # optional extra of a user callable
+        if callable(bind):
+            bind(F, quadrature_degree)
+
+    def tangent_correction(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr | None:
+        correction = getattr(self.psi, "tangent_correction", None)  # optional extra of a user callable
+        return correction(F) if callable(correction) else None
+
+
+def as_energy(psi: Callable) -> EnergyProtocol:
+    """``psi`` as an :class:`~hyperfem.problem.protocol.EnergyProtocol`, its missing extras neutral.
+
+    An energy that declares every extra is returned as it is; any other
+    callable ``psi(F)`` is wrapped (calling the wrapper calls ``psi``).
+    """
+    if isinstance(psi, EnergyProtocol):
+        return psi
+    return _UserEnergy(psi)
 
 
 def check_region_coverage(domain, regions, where: str) -> None:

@@ -41,11 +41,10 @@ from dolfinx.mesh import CellType
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import deformation_gradient
-from hyperfem.materials.invertibility import is_invertible
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
 from hyperfem.problem.base import EnergyProblem
-from hyperfem.problem.energy import check_region_coverage, scalar_energy
+from hyperfem.problem.energy import as_energy, check_region_coverage, scalar_energy
 from hyperfem.problem.loads import Load
 from hyperfem.problem.protocol import Updater
 from hyperfem.problem.quadrature import check_volume_quadrature, volume_quadrature_degree
@@ -69,6 +68,7 @@ def default_quadrature_degree(degree: int, cell_type: CellType | None = None) ->
 
 def as_sequence(items, what: str, where: str) -> list:
     """``items`` as a list; a single condition or load (or a non-sequence) is an error."""
+    # Boundary: items is user input of any type; only iterability is asked of it.
     if isinstance(items, (str, bytes, Mapping)) or not hasattr(items, "__iter__"):
         raise ParameterError(f"{where}: {what} must be a list or tuple, got {type(items).__name__}")
     return list(items)
@@ -167,28 +167,24 @@ class HyperelasticProblem(EnergyProblem):
                 raise ParameterError(f"{where}: material mapping is empty")
             check_region_coverage(domain, list(material), where)
             regions = dict(material)
+        distinct = list({id(psi): psi for psi in regions.values()}.values())
+        energies = {id(psi): as_energy(psi) for psi in distinct}
         for psi in regions.values():
-            bind = getattr(psi, "bind", None)
-            if callable(bind):
-                bind(self.F, self.quadrature_degree)
+            energies[id(psi)].bind(self.F, self.quadrature_degree)
         self.energy_internal = sum(
             scalar_energy(psi, self.F, f"{where}, " + ("whole domain" if name is None else f"region {name!r}"))
             * domain.dx(name, metadata=md)
             for name, psi in regions.items()
         )
-        materials = list({id(psi): psi for psi in regions.values()}.values())
-        self.invertible = all(is_invertible(psi) for psi in materials) if invertible is None else invertible
-        self.state_hooks = tuple(hook for psi in materials for hook in getattr(psi, "state_hooks", ()))
+        materials = [energies[id(psi)] for psi in distinct]
+        self.invertible = all(bool(e.invertible) for e in materials) if invertible is None else invertible
+        self.state_hooks = tuple(hook for energy in materials for hook in energy.state_hooks)
         own_updaters = as_sequence(updaters, "updaters", where)
-        for psi in materials:
-            for updater in getattr(psi, "updaters", ()):
+        for energy in materials:
+            for updater in energy.updaters:
                 if not any(updater is other for other in own_updaters):
                     own_updaters.append(updater)
-        corrections = [
-            (name, psi.tangent_correction(self.F))
-            for name, psi in regions.items()
-            if callable(getattr(psi, "tangent_correction", None))
-        ]
+        corrections = [(name, energies[id(psi)].tangent_correction(self.F)) for name, psi in regions.items()]
         corrections = [(name, c) for name, c in corrections if c is not None]
         correction = (
             sum(c * domain.dx(name, metadata=md) for name, c in corrections) if corrections else None
@@ -197,7 +193,7 @@ class HyperelasticProblem(EnergyProblem):
 
         # Loads: one Constant magnitude each, scaled by its profile.
         self._derive_forms(self.u, v, v, du, loads, updaters=own_updaters, tangent_correction=correction)
-        on_points = [psi for psi in materials if getattr(psi, "quadrature_rule_degree", None) is not None]
+        on_points = [psi for psi in distinct if energies[id(psi)].quadrature_rule_degree is not None]
         if on_points:
             raised = {
                 itg.metadata().get("quadrature_degree")

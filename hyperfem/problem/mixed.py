@@ -155,6 +155,8 @@ class MixedHyperelasticProblem(EnergyProblem):
 
     saddle_point = True
 
+    _shear_moduli: dict[str | None, float] | None = None  # filled by reference_shear_moduli()
+
     def __init__(
         self,
         domain: Domain,
@@ -268,7 +270,7 @@ class MixedHyperelasticProblem(EnergyProblem):
         linearisation), the mean over shear modes for an anisotropic one.
         Collective; each region's small form is compiled on first use.
         """
-        if getattr(self, "_shear_moduli", None) is None:
+        if self._shear_moduli is None:
             d = self.domain.gdim
             basis = _deviatoric_basis(d)
             F = ufl.variable(ufl.Identity(d))

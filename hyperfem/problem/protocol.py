@@ -5,7 +5,15 @@ Every problem — the displacement problem
 (:class:`~hyperfem.problem.MixedHyperelasticProblem`), and a time step of
 either (:class:`~hyperfem.dynamics.IncrementalProblem`) — meets
 :class:`SolidProblem`; :class:`~hyperfem.solver.NewtonSolver`, the dynamics
-package and the outputs rely on nothing else.
+package and the outputs rely on nothing else, except the optional contracts
+declared here too, which they test with ``isinstance`` rather than probe for:
+:class:`InvertibleProblem`, :class:`StateHookedProblem` and
+:class:`CorrectedTangentProblem` (members of the displacement problems),
+:class:`MixedProblemProtocol` (the three-field problem) and
+:class:`TimeStepProblem` / :class:`TimeStepState` (a time step wrapping the
+problem of a body). :class:`EnergyProtocol` is what a problem reads of a
+stored energy; a plain callable ``psi(F)`` is given neutral extras by
+:func:`hyperfem.problem.energy.as_energy`.
 
 The unknown ``u`` is a :class:`dolfinx.fem.Function` on a space that is the
 displacement space or has it as its first block;
@@ -22,7 +30,8 @@ a scheme evaluates them apart, as generalized-α does).
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import ufl
@@ -30,7 +39,17 @@ from dolfinx import fem
 
 from hyperfem.mesh.domain import Domain
 
-__all__ = ["SolidProblem", "Updater"]
+__all__ = [
+    "CorrectedTangentProblem",
+    "EnergyProtocol",
+    "InvertibleProblem",
+    "MixedProblemProtocol",
+    "SolidProblem",
+    "StateHookedProblem",
+    "TimeStepProblem",
+    "TimeStepState",
+    "Updater",
+]
 
 
 @runtime_checkable
@@ -59,11 +78,11 @@ class SolidProblem(Protocol):
         rigid_motion_resisted: Whether the tangent is regular without Dirichlet
             conditions (inertia); static problems need conditions that fix
             every rigid-body motion.
-        invertible: *Optional* (read it with ``getattr(problem, "invertible", False)``):
-            whether every energy is finite and restoring for :math:`J \\le 0`
-            (:mod:`hyperfem.materials.invertibility`), so the solver may drop
-            its inversion guard. Not a required member, so that problems
-            written before it still meet the protocol.
+
+    The optional members are declared apart, so that problems written
+    before them still meet this protocol: :class:`InvertibleProblem`,
+    :class:`StateHookedProblem`, :class:`CorrectedTangentProblem`,
+    :class:`MixedProblemProtocol` and :class:`TimeStepProblem`.
     """
 
     domain: Domain
@@ -106,3 +125,135 @@ class SolidProblem(Protocol):
 
     def nonfinite_terms(self) -> list[str]:
         """Names of load terms whose residual is NaN/inf at the current state."""
+
+
+@runtime_checkable
+class EnergyProtocol(Protocol):
+    r"""A stored energy :math:`\psi(F)` with every optional extra a problem reads.
+
+    A plain callable ``psi(F)`` has none of them;
+    :func:`hyperfem.problem.energy.as_energy` gives it the neutral ones.
+
+    Attributes:
+        invertible: Whether the energy is finite and restoring for :math:`J \le 0`
+            (:mod:`hyperfem.materials.invertibility`).
+        state_hooks: Callables ``hook()`` the solver runs at every new state before assembling.
+        updaters: Objects with ``update(t)`` the problem moves with its loads.
+        quadrature_rule_degree: Degree of the rule whose points hold the energy's
+            fields (``None``: it holds none).
+    """
+
+    invertible: bool
+    state_hooks: Sequence[Callable[[], None]]
+    updaters: Sequence[Updater]
+    quadrature_rule_degree: int | None
+
+    def __call__(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """The energy density at the deformation gradient ``F``."""
+
+    def bind(self, F: ufl.core.expr.Expr, quadrature_degree: int) -> None:
+        """Attach the energy's fields to the problem's ``F`` on the volume rule of ``quadrature_degree``."""
+
+    def tangent_correction(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr | None:
+        """A pseudo-energy whose second variation is added to the tangent only (``None``: none)."""
+
+
+@runtime_checkable
+class InvertibleProblem(Protocol):
+    r"""A problem that says whether every energy is finite and restoring for :math:`J \le 0`.
+
+    Attributes:
+        invertible: Whether the solver may drop its inversion guard.
+    """
+
+    invertible: bool
+
+
+@runtime_checkable
+class StateHookedProblem(Protocol):
+    """A problem with callables ``hook()`` the solver runs at every new state before assembling.
+
+    Attributes:
+        state_hooks: The hooks (e.g. polar-rotation refreshes).
+    """
+
+    state_hooks: Sequence[Callable[[], None]]
+
+
+@runtime_checkable
+class CorrectedTangentProblem(Protocol):
+    """A problem whose tangent carries a term that is not the derivative of its residual.
+
+    Attributes:
+        tangent_correction: Form whose second variation was added to the
+            jacobian only (``None``: the plain derivative).
+    """
+
+    tangent_correction: ufl.Form | None
+
+
+@runtime_checkable
+class MixedProblemProtocol(SolidProblem, Protocol):
+    """The three-field (saddle-point) problem: displacement, pressure and volume blocks.
+
+    Attributes:
+        saddle_point: ``True``: the tangent is indefinite.
+    """
+
+    saddle_point: bool
+
+    def field_dofs(self) -> dict[str, np.ndarray]:
+        """Local dofs of ``u`` in each field (``"displacement"``, ``"pressure"``, ``"volume"``)."""
+
+    def schur_preconditioner_term(self) -> ufl.Form:
+        """The pressure-mass form that preconditions the Schur complement."""
+
+    def update_fields(self) -> tuple[fem.Function, fem.Function]:
+        """The collapsed displacement and pressure at the current state."""
+
+
+@runtime_checkable
+class TimeStepState(Protocol):
+    """A time step's wrapper around the problem of a body (implicit or explicit).
+
+    Attributes:
+        base: The problem of the body.
+        v: Velocity.
+    """
+
+    base: SolidProblem
+    v: fem.Function
+
+
+@runtime_checkable
+class TimeStepProblem(SolidProblem, Protocol):
+    """One time step of a problem (what a dynamic stage drives).
+
+    Attributes:
+        base: The problem of the body.
+        integrator: The time integrator.
+        v: Velocity.
+        a: Acceleration.
+        t_n: Time of the last accepted state.
+    """
+
+    base: SolidProblem
+    integrator: Any
+    v: fem.Function
+    a: fem.Function
+    t_n: float
+
+    def save(self) -> Any:
+        """A snapshot of the accepted state (time, displacement, velocity, acceleration)."""
+
+    def restore(self, state: Any) -> None:
+        """Back to a snapshot from :meth:`save`."""
+
+    def prepare(self, dt: float) -> None:
+        """Set the step's predictors for a step of size ``dt``."""
+
+    def commit(self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray) -> None:
+        """Accept the step from the state ``(u_n, v_n, a_n)``."""
+
+    def step_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Copies of the accepted state ``(u_n, v_n, a_n)``."""

@@ -266,9 +266,7 @@ def load_checkpoint(sim, path: str | Path) -> dict:
         p.restore(DynamicState(t, p.u.x.array, p.v.x.array, p.a.x.array))
     else:
         sim.problem.set_time(t)
-    refresh = getattr(sim.solver, "refresh", None)
-    if refresh is not None:  # state hooks (e.g. a material's rotation field) at the loaded state
-        refresh()
+    sim.solver.refresh()  # state hooks (e.g. a material's rotation field) at the loaded state
     return meta
 
 

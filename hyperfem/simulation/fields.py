@@ -80,6 +80,7 @@ def _check_names(fields: Sequence[str]) -> list[str]:
 
 
 def _activation_parts(activation) -> Mapping[str | None, Expr | float]:
+    # Boundary: a user activation is an Activation (with .expr) or a plain UFL expression / number.
     if isinstance(activation, Mapping):
         return {r: getattr(a, "expr", a) for r, a in activation.items()}
     return {None: getattr(activation, "expr", activation)}

@@ -326,6 +326,7 @@ def quadrature_degree(e) -> int | None:
     degrees = [
         int(c.ufl_function_space().ufl_element().degree)
         for c in extract_coefficients(e)
+        # Boundary: only basix elements (third-party) say whether they are quadrature elements.
         if getattr(c.ufl_function_space().ufl_element(), "is_quadrature", False)
     ]
     return max(degrees) if degrees else None

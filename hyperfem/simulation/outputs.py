@@ -410,6 +410,7 @@ class Progress(Output):
         """Print the mesh-quality line before the first solve (rank 0)."""
         super().start(sim)
         if self.bar is None:
+            # Boundary: sys.stdout may be replaced by any stream (pytest, notebooks) without isatty.
             self.bar = bool(getattr(sys.stdout, "isatty", lambda: False)()) and not os.environ.get("CI")
         self._drawn = False
         self._t0 = sim.time
@@ -479,17 +480,17 @@ class Recorder(Output):
 
     def summary(self, sim, summary: dict) -> dict:
         """The recorder's summary, if it has one."""
-        make = getattr(self.recorder, "summary", None)
+        make = getattr(self.recorder, "summary", None)  # boundary: a user recorder may not summarize
         return dict(make()) if callable(make) else {}
 
     def state(self, sim) -> dict | None:
         """The recorder's ``rows`` list, if it keeps one (e.g. :class:`~hyperfem.dynamics.Diagnostics`)."""
-        rows = getattr(self.recorder, "rows", None)
+        rows = getattr(self.recorder, "rows", None)  # boundary: a user recorder may keep no rows
         return {"rows": list(rows)} if isinstance(rows, list) else None
 
     def restart(self, sim, state: dict | None) -> None:
         """Give the recorder back its rows."""
-        rows = getattr(self.recorder, "rows", None)
+        rows = getattr(self.recorder, "rows", None)  # boundary: a user recorder may keep no rows
         if state is not None and isinstance(rows, list):
             rows[:] = state["rows"]
 

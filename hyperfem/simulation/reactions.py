@@ -90,6 +90,7 @@ from mpi4py import MPI
 from ufl.algorithms import extract_coefficients
 
 from hyperfem.errors import ParameterError
+from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepProblem, TimeStepState
 from hyperfem.simulation.outputs import Output
 from hyperfem.solver.stepping import StepRecord
 
@@ -144,8 +145,9 @@ def dirichlet_boundaries(problem) -> dict[str, list[fem.DirichletBC]]:
         problem: A problem built with hyperfem's boundary conditions (or an
             incremental problem wrapping one).
     """
-    base = getattr(problem, "base", problem)
+    base = problem.base if isinstance(problem, TimeStepState) else problem
     out: dict[str, list[fem.DirichletBC]] = {}
+    # Boundary: only problems built on hyperfem's EnergyProblem hold compiled conditions.
     for compiled in getattr(base, "_dirichlet", ()):
         out.setdefault(compiled.bc.boundary, []).extend(compiled.dirichlet)
     return out
@@ -224,7 +226,7 @@ class ReactionForce:
         domain = problem.domain
         self.comm = domain.comm
         W = problem.u.function_space
-        mixed = getattr(problem, "saddle_point", False)
+        mixed = isinstance(problem, MixedProblemProtocol) and problem.saddle_point
         Vu = W.sub(0) if mixed else W
         self._test = fem.Function(W)
         fdim = domain.tdim - 1
@@ -284,7 +286,7 @@ class DirichletReactions:
     ):
         if shared not in SHARED:
             raise ParameterError(f"DirichletReactions: shared must be one of {', '.join(SHARED)}, got {shared!r}")
-        base = getattr(problem, "base", problem)
+        base = problem.base if isinstance(problem, TimeStepState) else problem
         self.problem = problem
         self.shared = shared
         domain = base.domain
@@ -403,7 +405,7 @@ class DirichletReactions:
     @staticmethod
     def _inertia_form(problem, base):
         """:math:`M a + C v` tested with the state's test function (dynamic runs), else ``None``."""
-        integrator = getattr(problem, "integrator", None)
+        integrator = problem.integrator if isinstance(problem, TimeStepProblem) else None
         if integrator is None or not integrator.dynamic:
             return None
         disp = base.displacement
@@ -467,7 +469,7 @@ class DirichletReactions:
     def __call__(self) -> dict[str, ReactionResult]:
         """Boundary name → :class:`ReactionResult` at the current state (collective)."""
         parts = self.shares()
-        state = getattr(self.problem, "base", self.problem).u.x.array
+        state = (self.problem.base if isinstance(self.problem, TimeStepState) else self.problem).u.x.array
         x = np.array(self._X, dtype=float)
         for i, dofs in enumerate(self._idx):
             x[:, i] += state[dofs]
@@ -526,7 +528,7 @@ class Reactions(Output):
 
     def start(self, sim) -> None:
         """Find the constrained dofs and compile the forms."""
-        hooks = [*getattr(sim.solver, "state_hooks", ())]
+        hooks = [*sim.solver.state_hooks]
         self.reactions = DirichletReactions(
             sim.problem, self.boundaries, points=self.points, total=self.total, state_hooks=hooks, shared=self.shared
         )

@@ -43,6 +43,7 @@ from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, Interrupted
 from hyperfem.mesh.quality import MeshQuality, mesh_quality
+from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepProblem, TimeStepState
 from hyperfem.simulation import checkpoint as _checkpoint
 from hyperfem.simulation.interrupt import InterruptGuard
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
@@ -59,7 +60,7 @@ class LargeDisplacementWarning(UserWarning):
 
 
 def _is_time_step(problem) -> bool:
-    return all(callable(getattr(problem, name, None)) for name in ("prepare", "commit", "step_inputs"))
+    return isinstance(problem, TimeStepProblem)
 
 
 def _matched_states(outputs: Sequence, saved: list[dict]) -> list[dict | None]:
@@ -93,13 +94,13 @@ class Fields:
     """
 
     def __init__(self, problem):
-        self.base = getattr(problem, "base", problem)
-        self._mixed = callable(getattr(self.base, "update_fields", None))
+        self.base = problem.base if isinstance(problem, TimeStepState) else problem
+        self._mixed = isinstance(self.base, MixedProblemProtocol)
         if self._mixed:
             self.displacement, self.pressure = self.base.update_fields()
         else:
             self.displacement, self.pressure = self.base.u, None
-        self._v = getattr(problem, "v", None)
+        self._v = problem.v if isinstance(problem, TimeStepState) else None
         self._v_dofs = None
         self.velocity = self._v
         space = self.base.displacement_space()
@@ -202,6 +203,7 @@ class Simulation:
         self._wall = 0.0
         self._wall_before = 0.0
         self._warned_size = False
+        self._guard: InterruptGuard | None = None
 
     # -- state -----------------------------------------------------------------------
     @property
@@ -359,7 +361,7 @@ class Simulation:
 
     def _check_interrupt(self) -> None:
         """Raise :class:`~hyperfem.errors.Interrupted` on every rank if any rank was signalled (collective)."""
-        guard = getattr(self, "_guard", None)
+        guard = self._guard
         if guard is None:
             return
         signum = guard.requested()

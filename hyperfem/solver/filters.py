@@ -42,7 +42,7 @@ from dolfinx import fem
 
 from hyperfem.errors import ParameterError
 from hyperfem.io.probes import QuadratureMinimum
-from hyperfem.problem.protocol import SolidProblem
+from hyperfem.problem.protocol import InvertibleProblem, SolidProblem
 from hyperfem.solver.state import assign_state
 from hyperfem.solver.step_filter import StepFilter, exact_filter_applies
 
@@ -346,7 +346,8 @@ def resolve_min_jacobian(min_jacobian: float | str | None, problem: SolidProblem
     if isinstance(min_jacobian, str):
         if min_jacobian != "auto":
             raise ParameterError(f"NewtonSolver: min_jacobian must be a number, None or 'auto', got {min_jacobian!r}")
-        return None if getattr(problem, "invertible", False) else DEFAULT_MIN_JACOBIAN
+        invertible = isinstance(problem, InvertibleProblem) and problem.invertible
+        return None if invertible else DEFAULT_MIN_JACOBIAN
     if min_jacobian is None:
         return None
     if isinstance(min_jacobian, bool) or not isinstance(min_jacobian, numbers.Real) or not np.isfinite(min_jacobian):

@@ -55,6 +55,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
+from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepState
+
 __all__ = [
     "DIRECT",
     "DIRECT_THRESHOLD",
@@ -338,7 +340,7 @@ def _fieldsplit_configure(problem) -> Callable[[PETSc.KSP], None]:
     """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``."""
     from hyperfem.solver.constraints import rigid_modes
 
-    base = getattr(problem, "base", problem)
+    base = problem.base if isinstance(problem, TimeStepState) else problem
     W = problem.u.function_space
     fields = base.field_dofs()
     comm = W.mesh.comm
@@ -385,9 +387,9 @@ def choose_linear_solver(
     """
     W = problem.u.function_space
     V = problem.displacement_space()
-    base = getattr(problem, "base", problem)
+    base = problem.base if isinstance(problem, TimeStepState) else problem
     if V is not W:
-        if _global_size(W) < mixed_threshold or not hasattr(base, "schur_preconditioner_term"):
+        if _global_size(W) < mixed_threshold or not isinstance(base, MixedProblemProtocol):
             return LinearSolver()
         return LinearSolver(
             dict(MIXED_ITERATIVE),

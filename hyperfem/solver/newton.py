@@ -57,7 +57,7 @@ from dolfinx import fem
 
 from hyperfem.errors import ConvergenceError, ParameterError, SolverError
 from hyperfem.io.probes import QuadratureMinimum
-from hyperfem.problem.protocol import SolidProblem
+from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
 from hyperfem.solver.filters import (
     DEFAULT_MIN_JACOBIAN,
@@ -283,7 +283,8 @@ class NewtonSolver:
         compiler = {"form_compiler_options": form_compiler_options, "jit_options": jit_options}
         self._nlp = self._nonlinear_problem(problem.jacobian if jacobian is None else jacobian, petsc_options, compiler)
         self.snes = self._nlp.solver
-        self.state_hooks = [*getattr(problem, "state_hooks", ()), *state_hooks]
+        own_hooks = problem.state_hooks if isinstance(problem, StateHookedProblem) else ()
+        self.state_hooks = [*own_hooks, *state_hooks]
         self.linear_solver_name = describe(self.options)
         self._preconditioner = self._attach_linear_solver(compiler)
         self._norms: list[float] = []

@@ -80,7 +80,7 @@ from ufl.algorithms import extract_coefficients
 from ufl.algorithms.analysis import extract_constants
 
 from hyperfem.errors import ParameterError
-from hyperfem.problem.protocol import SolidProblem
+from hyperfem.problem.protocol import CorrectedTangentProblem, SolidProblem
 from hyperfem.solver.newton import NewtonSolver
 
 __all__ = [
@@ -217,7 +217,8 @@ def _material_integrals(problem: SolidProblem, where: str) -> list:
     measure (region, rule) are summed into one, so each region gets one
     material tangent.
     """
-    forms = [problem.energy_internal, getattr(problem, "tangent_correction", None)]
+    correction = problem.tangent_correction if isinstance(problem, CorrectedTangentProblem) else None
+    forms = [problem.energy_internal, correction]
     grouped: dict[tuple, object] = {}
     for form in forms:
         for itg in () if form is None else form.integrals():
@@ -337,7 +338,7 @@ class ProjectedTangent:
             integrand = ufl.grad(test)[i, j] * field[i, j, k, l] * ufl.grad(trial)[k, l]
             integrals.append(itg.reconstruct(integrand=integrand))
         form = ufl.Form(integrals)
-        follower = getattr(problem, "follower_residual", None)
+        follower = problem.follower_residual
         if follower is not None:
             form = form + ufl.derivative(follower, u, trial)
         self.form = form
@@ -367,7 +368,7 @@ class ProjectedTangent:
         for term in self._terms:
             for c in term.inputs:
                 if id(c) not in seen:
-                    seen[id(c)] = np.asarray(c.x.array if hasattr(c, "x") else c.value)
+                    seen[id(c)] = np.asarray(c.x.array if isinstance(c, fem.Function) else c.value)
         return list(seen.values())
 
     def _unchanged(self, state: list[np.ndarray]) -> bool:

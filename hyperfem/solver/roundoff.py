@@ -19,7 +19,7 @@ from mpi4py import MPI
 from dolfinx import mesh as dmesh
 from petsc4py import PETSc
 
-from hyperfem.problem.protocol import SolidProblem
+from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem
 
 __all__ = [
     "CONVERGED_ROUNDOFF",
@@ -80,8 +80,7 @@ def reference_scale(problem: SolidProblem, template: PETSc.Vec) -> PETSc.Vec:
     scale = template.duplicate()
     owned = scale.getLocalSize()
     values = np.zeros(owned)
-    field_dofs = getattr(problem, "field_dofs", None)
-    dofs = np.arange(owned) if field_dofs is None else field_dofs()["displacement"]
+    dofs = problem.field_dofs()["displacement"] if isinstance(problem, MixedProblemProtocol) else np.arange(owned)
     values[dofs[dofs < owned]] = REFERENCE_SCALE_FRACTION * h
     scale.array[:] = values
     return scale

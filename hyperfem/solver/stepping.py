@@ -51,6 +51,7 @@ import numpy as np
 from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.problem.protocol import TimeStepProblem
 from hyperfem.validation import check_count, check_finite_scalar, check_positive, is_finite_number
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 
@@ -477,13 +478,14 @@ class DynamicStage:
     solve; :meth:`commit` updates velocity, acceleration and time.
 
     Args:
-        problem: The incremental problem; its accepted state is the start.
+        problem: The incremental problem (a :class:`~hyperfem.problem.protocol.TimeStepProblem`);
+            its accepted state is the start.
         solver: The Newton solver built on it.
     """
 
     kind = "dynamic"
 
-    def __init__(self, problem, solver: NewtonSolver):
+    def __init__(self, problem: TimeStepProblem, solver: NewtonSolver):
         self.problem = problem
         self.solver = solver
         self._time = float(problem.save().t)  # the accepted time t_n
