@@ -189,14 +189,19 @@ def _add_beam_parser(sub: argparse._SubParsersAction) -> None:
     )
     beam.add_argument("--size", "--h", dest="size", type=positive_float, default=1.0, help="element size h (m)")
     beam.add_argument("--order", type=int, choices=(1, 2), default=1, help="geometric order")
-    beam.add_argument(
+    _add_generator_output(beam, "beam")
+
+
+def _add_generator_output(parser: argparse.ArgumentParser, name: str) -> None:
+    """``-o/--output`` and ``--allow-large`` of a mesh generator's command."""
+    parser.add_argument(
         "-o",
         "--output",
         type=Path,
         default=None,
-        help="output .msh (default: beam_h<SIZE>.msh in the current folder; the path written is printed)",
+        help=f"output .msh (default: {name}_h<SIZE>.msh in the current folder; the path written is printed)",
     )
-    beam.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
+    parser.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
 
 
 def _add_fusiform_parser(sub: argparse._SubParsersAction) -> None:
@@ -214,14 +219,7 @@ def _add_fusiform_parser(sub: argparse._SubParsersAction) -> None:
     fus.add_argument("--tendon-radius", type=positive_float, default=None, help="tendon radius (m), below R")
     fus.add_argument("--tendon-length", type=positive_float, default=None, help="length of each tendon (m)")
     fus.add_argument("--sections", type=positive_int, default=None, help="lofted cross-sections (odd, >= 3)")
-    fus.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        default=None,
-        help="output .msh (default: fusiform_h<SIZE>.msh in the current folder; the path written is printed)",
-    )
-    fus.add_argument("--allow-large", action="store_true", help=ALLOW_LARGE_HELP)
+    _add_generator_output(fus, "fusiform")
 
 
 def _add_plot_parser(sub: argparse._SubParsersAction) -> None:

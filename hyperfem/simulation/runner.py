@@ -203,6 +203,7 @@ class Simulation:
         self._wall = 0.0
         self._wall_before = 0.0
         self._warned_size = False
+        self._size: float | None = None
         self._guard: InterruptGuard | None = None
 
     # -- state -----------------------------------------------------------------------
@@ -347,7 +348,9 @@ class Simulation:
         gdim = self.fields.base.domain.gdim
         values = u.x.array.reshape(-1, gdim)
         largest = self.comm.allreduce(float(np.max(np.linalg.norm(values, axis=1), initial=0.0)), op=MPI.MAX)
-        size = self._body_size()
+        if self._size is None:  # the reference configuration does not change: measured once
+            self._size = self._body_size()
+        size = self._size
         if largest > LARGE_DISPLACEMENT * size:
             self._warned_size = True
             if self.comm.rank == 0:
