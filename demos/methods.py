@@ -28,7 +28,7 @@
 # velocity update is the mass matrix"), which is **SE-FEM** in this table, and
 # its L-FEM is then the lumped version of that, i.e. exactly the FVM (seed 003
 # eq. 3.97; `tests/test_explicit.py` checks that the FVM node force is the
-# assembled FEM force). COR needs `hyperfem.materials.corotational` and is
+# assembled FEM force). COR needs `hyperfem.materials.corotational_linear` and is
 # skipped without it; its energy is quadratic within a step (the rotation
 # $R_n$ is that of the step's start), so its single iteration solves the
 # backward-Euler step exactly.
@@ -88,8 +88,8 @@ NEWTON_OPTIONS = {"snes_rtol": 1e-8, "snes_atol": 1e-8, "snes_stol": 1e-10, "sne
 
 
 def corotational_available() -> bool:
-    """Whether ``hyperfem.materials.corotational`` (the COR energy) is installed."""
-    return importlib.util.find_spec("hyperfem.materials.corotational") is not None
+    """Whether ``hyperfem.materials.corotational_linear`` (the COR energy) is installed."""
+    return importlib.util.find_spec("hyperfem.materials.corotational_linear") is not None
 
 
 def available_methods() -> list[str]:
@@ -115,7 +115,7 @@ def body(method: str, case: str, domain, spec: CantileverDynamics):
         raise hf.ParameterError(f"methods demo: unknown case {case!r} (choose from {', '.join(CASES)})")
     if method != "COR":
         return cantilever_problem(case, domain, spec)
-    from hyperfem.materials.corotational import corotational_linear
+    from hyperfem.materials.corotational_linear import corotational_linear
 
     psi, updater = corotational_linear(spec.lame)
     bcs, loads, must_hit = [hf.Clamp("clamped")], [], []
@@ -139,7 +139,7 @@ def build(method: str, case: str, domain, spec: CantileverDynamics | None = None
     if method not in METHODS:
         raise hf.ParameterError(f"methods demo: unknown method {method!r} (choose from {', '.join(METHODS)})")
     if method == "COR" and not corotational_available():
-        raise hf.ParameterError("methods demo: COR needs hyperfem.materials.corotational, which is not installed")
+        raise hf.ParameterError("methods demo: COR needs hyperfem.materials.corotational_linear, which is not installed")
     spec = CantileverDynamics() if spec is None else spec
     base, must_hit = body(method, case, domain, spec)
     damping = dyn.viscous_damping(spec.damping)

@@ -73,7 +73,7 @@ from hyperfem.problem import solid_problem  # noqa: E402
 from hyperfem.simulation import (  # noqa: E402
     VTX,
     BoundaryAverage,
-    CellFields,
+    CellVTX,
     JSONSummary,
     Progress,
     Quantity,
@@ -161,7 +161,7 @@ def run_experiment(kind, domain, a0, a0_out, args):
         }
         outputs += [
             VTX(args.output / f"muscle_{kind}_u.bp"),
-            CellFields(args.output / f"muscle_{kind}_cells.bp", cells),
+            CellVTX(args.output / f"muscle_{kind}_cells.bp", cells),
             JSONSummary(args.output / f"muscle_{kind}.json"),
         ]
     stepping = hf.LoadStepping(

@@ -70,7 +70,7 @@ from hyperfem.loading import Activation  # noqa: E402
 from hyperfem.cases.muscle import MUSCLE_DENSITY, muscle_problem  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
-from hyperfem.io import VTXOutput, ensure_output_dir, write_json  # noqa: E402
+from hyperfem.io import VTXWriter, ensure_output_dir, write_json  # noqa: E402
 from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.mesh.fusiform import FusiformGeometry, fusiform_mesh  # noqa: E402
 
@@ -149,7 +149,7 @@ def integrate(domain, a0, args, scheme, writer_path=None):
     rows = []
     vtx = None
     if writer_path is not None:
-        vtx = VTXOutput(domain.comm, writer_path, [problem.displacement_block.function(problem.u)])
+        vtx = VTXWriter(domain.comm, writer_path, [problem.displacement_block.function(problem.u)])
 
     def record(step=None):
         row = diagnostics.record(step)

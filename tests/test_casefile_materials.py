@@ -57,7 +57,7 @@ def _polar_rotation(F: np.ndarray) -> np.ndarray:
 def fixed_corotated_P(F: np.ndarray, mu: float, lmbda: float) -> np.ndarray:
     """:math:`P = 2\\mu(F - R) + \\lambda (J - 1) J F^{-T}`.
 
-    Of :math:`\\psi = \\mu\\|F - R\\|^2 + \\lambda/2 (J - 1)^2` (:mod:`hyperfem.materials.corotated`).
+    Of :math:`\\psi = \\mu\\|F - R\\|^2 + \\lambda/2 (J - 1)^2` (:mod:`hyperfem.materials.fixed_corotated`).
     """
     J = np.linalg.det(F)
     return 2.0 * mu * (F - _polar_rotation(F)) + lmbda * (J - 1.0) * J * np.linalg.inv(F).T
@@ -72,7 +72,7 @@ def corotational_linear_P(F: np.ndarray, R: np.ndarray, mu: float, lmbda: float)
     """:math:`P = R\\,\\sigma_\\text{lin}(R^T F)` for the rotation ``R`` of the step (COR).
 
     :math:`\\sigma_\\text{lin} = 2\\mu\\varepsilon + \\lambda \\operatorname{tr}(\\varepsilon) I`,
-    :math:`\\varepsilon = \\operatorname{sym}(R^T F) - I` (:mod:`hyperfem.materials.corotational`).
+    :math:`\\varepsilon = \\operatorname{sym}(R^T F) - I` (:mod:`hyperfem.materials.corotational_linear`).
     """
     G = R.T @ F
     eps = 0.5 * (G + G.T) - np.eye(3)

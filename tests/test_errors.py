@@ -455,14 +455,14 @@ def test_ensure_output_dir(shared_dir):
 
 
 def test_write_json_and_vtx_to_unwritable_folder():
-    from hyperfem.io import VTXOutput, write_json
+    from hyperfem.io import VTXWriter, write_json
 
     with pytest.raises(OutputError, match=rf"cannot write {UNWRITABLE}/summary.json"):
         write_json(UNWRITABLE / "summary.json", {"a": 1}, MPI.COMM_WORLD)
     domain = _small_domain()
     problem = hf.HyperelasticProblem(domain, _psi, bcs=[hf.Clamp("left")])
     with pytest.raises(OutputError, match=rf"output folder {UNWRITABLE} cannot"):
-        VTXOutput(MPI.COMM_WORLD, UNWRITABLE / "u.bp", [problem.u])
+        VTXWriter(MPI.COMM_WORLD, UNWRITABLE / "u.bp", [problem.u])
 
 
 def test_simulation_checks_output_folder_before_solving():

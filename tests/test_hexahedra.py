@@ -33,7 +33,7 @@ from hyperfem.dynamics import MassDensity, lumped_mass, total_mass
 from hyperfem.errors import ParameterError
 from hyperfem.io.probes import PointProbe
 from hyperfem.materials import LameParameters, neo_hookean
-from hyperfem.materials.corotated import FixedCorotated
+from hyperfem.materials.fixed_corotated import FixedCorotated
 from hyperfem.materials.polar import RotationField
 from hyperfem.problem import MixedHyperelasticProblem, SplitEnergy, default_quadrature_degree
 from hyperfem.solver.step_filter import StepFilter

@@ -16,8 +16,8 @@ from dolfinx import mesh as dmesh
 import hyperfem as hf
 from hyperfem import dynamics as dyn
 from hyperfem.materials import LameParameters, neo_hookean, with_parameters
-from hyperfem.materials.corotated import ARAP, FixedCorotated
-from hyperfem.materials.corotational import CorotationalLinear
+from hyperfem.materials.fixed_corotated import ARAP, FixedCorotated
+from hyperfem.materials.corotational_linear import CorotationalLinear
 from hyperfem.problem import SplitEnergy
 from hyperfem.problem.energy import as_energy
 from hyperfem.problem.mixed import MixedHyperelasticProblem

@@ -19,7 +19,7 @@ from hyperfem.simulation import (
     Progress,
     VTX,
     BoundaryAverage,
-    CellFields,
+    CellVTX,
     CSVLog,
     JSONSummary,
     Probe,
@@ -141,7 +141,7 @@ def test_mixed_problem_outputs(folder):
         average,
         RadialBulge(axis=(1.0, 0.0, 0.0), origin=(0.0, 0.15, 0.15)),
         VTX(folder / "mixed.bp"),
-        CellFields(folder / "mixed_cells.bp", {"cauchy_stress": cauchy_stress(problem, {None: material})}),
+        CellVTX(folder / "mixed_cells.bp", {"cauchy_stress": cauchy_stress(problem, {None: material})}),
     ]
     summary = Simulation(problem, hf.NewtonSolver(problem), hf.StepPolicy(), outputs, name="mixed").run()
     vertices, edges = _node_counts(domain)

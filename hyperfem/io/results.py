@@ -6,7 +6,7 @@ raises the same :class:`~hyperfem.errors.OutputError` on every rank instead
 of leaving the other ranks waiting in a collective call. VTX files are
 written collectively by ADIOS2 (BP4 engine: every frame is indexed as it is
 written, so a killed run leaves every complete frame readable;
-:func:`vtx_steps` counts them). XDMF files (:class:`XDMFOutput`) are written
+:func:`vtx_steps` counts them). XDMF files (:class:`XDMFWriter`) are written
 collectively through HDF5. What a run writes, and when, is decided by the
 outputs of :class:`~hyperfem.simulation.Simulation`.
 """
@@ -27,8 +27,8 @@ from dolfinx import fem, io
 from hyperfem.errors import OutputError
 
 __all__ = [
-    "VTXOutput",
-    "XDMFOutput",
+    "VTXWriter",
+    "XDMFWriter",
     "abandon",
     "abandoned",
     "ensure_output_dir",
@@ -238,7 +238,7 @@ def write_json(path: str | Path, data: dict, comm) -> Path:
     return path
 
 
-class VTXOutput:
+class VTXWriter:
     """A VTX (``.bp``) time series of one or more functions, for ParaView.
 
     VTX stores one element for all its functions, so each function is
@@ -323,7 +323,7 @@ class VTXOutput:
             raise OutputError(f"cannot close {self.path}: {errors[0]}")
         self._writer = None
 
-    def __enter__(self) -> VTXOutput:
+    def __enter__(self) -> VTXWriter:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -348,14 +348,14 @@ def vtx_steps(path: str | Path) -> int:
     return max(0, (index.stat().st_size - BP4_INDEX_HEADER) // BP4_INDEX_HEADER)
 
 
-class XDMFOutput:
+class XDMFWriter:
     """An XDMF (``.xdmf`` + ``.h5``) time series of functions, for ParaView.
 
     XDMF holds one mesh and, per time, nodal values on the mesh's geometry
     nodes or one value per cell. So every function is interpolated into the
     Lagrange space of the geometry's degree (P1 on straight cells; a P2
     displacement loses its edge values) unless it is cell-wise constant
-    (DG0), which is written as cell data. Use :class:`VTXOutput` for
+    (DG0), which is written as cell data. Use :class:`VTXWriter` for
     higher-degree fields.
 
     Args:
@@ -392,7 +392,7 @@ class XDMFOutput:
         """Close the file."""
         self._file.close()
 
-    def __enter__(self) -> XDMFOutput:
+    def __enter__(self) -> XDMFWriter:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -63,7 +63,7 @@ __all__ += [
     "volumetric_energy",
 ]
 
-from hyperfem.materials.corotated import (  # noqa: E402
+from hyperfem.materials.fixed_corotated import (  # noqa: E402
     ARAP,
     FixedCorotated,
     PolarRotationEnergy,
@@ -72,7 +72,7 @@ from hyperfem.materials.corotated import (  # noqa: E402
     fixed_corotated,
     fixed_corotated_stress,
 )
-from hyperfem.materials.corotational import (  # noqa: E402
+from hyperfem.materials.corotational_linear import (  # noqa: E402
     CorotationalLinear,
     StepRotation,
     corotational_linear,

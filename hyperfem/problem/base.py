@@ -16,7 +16,7 @@ A subclass may pass a *tangent correction*: a form :math:`C` whose second
 variation is added to the tangent only,
 :math:`K \mathrel{+}= \partial^2 C/\partial w^2[v, \delta w]` (the
 :math:`\partial R/\partial F` term of energies with a polar rotation held
-in a quadrature field, :mod:`hyperfem.materials.corotated`). Two more
+in a quadrature field, :mod:`hyperfem.materials.fixed_corotated`). Two more
 attributes tell the solver about the materials: ``invertible`` (the energy is
 finite and restoring for :math:`J \le 0`, so no inversion guard is needed)
 and ``state_hooks`` (callables to run at every new state before assembly).

@@ -28,8 +28,8 @@ J, fibre stretch, activation in VTX or XDMF), :mod:`~hyperfem.simulation.checkpo
 
 from hyperfem.simulation.measures import (
     BoundaryAverage,
-    CellFields,
     CellFunctions,
+    CellVTX,
     Probe,
     RadialBulge,
     Reaction,
@@ -61,8 +61,8 @@ __all__ = [
     "XDMF",
     "BoundaryAverage",
     "CSVLog",
-    "CellFields",
     "CellFunctions",
+    "CellVTX",
     "Checkpoint",
     "CheckpointError",
     "ConvergenceLog",

@@ -11,7 +11,7 @@ the summary:
 * :class:`RadialBulge` — largest radial displacement away from an axis,
   :math:`\max_X \big(|(X + u)_\perp| - |X_\perp|\big)` over the displacement nodes.
 
-:class:`CellFields` writes cell-wise fields (fibre stretch, activation,
+:class:`CellVTX` writes cell-wise fields (fibre stretch, activation,
 :func:`cauchy_stress`, ...) as a VTX time series (the derived fields of
 :mod:`hyperfem.simulation.fields` build on it). The reaction forces of every
 Dirichlet boundary, with moments, are :class:`~hyperfem.simulation.reactions.Reactions`. All of them work on the
@@ -40,8 +40,8 @@ from hyperfem.solver.stepping import StepRecord
 
 __all__ = [
     "BoundaryAverage",
-    "CellFields",
     "CellFunctions",
+    "CellVTX",
     "Probe",
     "RadialBulge",
     "Reaction",
@@ -208,7 +208,7 @@ def cauchy_stress(problem, materials: Mapping[str | None, SplitEnergy | Callable
             or energy ``psi(F)``.
 
     Returns:
-        Region → UFL tensor, for :class:`CellFields`.
+        Region → UFL tensor, for :class:`CellVTX`.
     """
     F = ufl.variable(deformation_gradient(problem.displacement()))
     mixed = isinstance(problem, MixedHyperelasticProblem)
@@ -227,7 +227,7 @@ def cauchy_stress(problem, materials: Mapping[str | None, SplitEnergy | Callable
 class CellFunctions:
     """Expressions interpolated into cell-wise functions (DG of a given degree), per region.
 
-    The machinery of :class:`CellFields` and of
+    The machinery of :class:`CellVTX` and of
     :class:`~hyperfem.simulation.fields.FieldOutput`: compiled once, refreshed
     before every frame.
 
@@ -244,7 +244,7 @@ class CellFunctions:
 
     def __init__(self, domain, fields: Mapping[str, Expr | float | Mapping[str | None, Expr | float]], degree: int = 0):
         if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 0):
-            raise ParameterError(f"CellFields: degree must be an integer >= 0, got {degree!r}")
+            raise ParameterError(f"CellVTX: degree must be an integer >= 0, got {degree!r}")
         mesh = domain.mesh
         self._parts: list[tuple[fem.Function, list]] = []
         self.functions: list[fem.Function] = []
@@ -270,7 +270,7 @@ class CellFunctions:
                     compiled.append((cells, (fem.form(ufl.inner(e, w) * dx), rule)))
                 else:
                     raise ParameterError(
-                        f"CellFields: {name} depends on values kept at quadrature points; it has cell values "
+                        f"CellVTX: {name} depends on values kept at quadrature points; it has cell values "
                         f"(degree 0), not degree {degree}"
                     )
             self._parts.append((f, compiled))
@@ -332,7 +332,7 @@ def quadrature_degree(e) -> int | None:
     return max(degrees) if degrees else None
 
 
-class CellFields(VTX):
+class CellVTX(VTX):
     """Cell-wise fields (DG0 at cell midpoints, or DG of a higher degree) as a VTX time series.
 
     Args:

@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import fem
 
-from hyperfem.io.results import VTXOutput, XDMFOutput, ensure_output_dir, flatten_row, on_rank0, write_json
+from hyperfem.io.results import VTXWriter, XDMFWriter, ensure_output_dir, flatten_row, on_rank0, write_json
 from hyperfem.solver.stepping import StepRecord
 
 __all__ = [
@@ -197,15 +197,15 @@ class VTX(_TimeSeries):
     ):
         super().__init__(path, functions, times, role)
 
-    def _open(self, comm, path: Path, functions: list[fem.Function]) -> VTXOutput:
-        return VTXOutput(comm, path, functions)
+    def _open(self, comm, path: Path, functions: list[fem.Function]) -> VTXWriter:
+        return VTXWriter(comm, path, functions)
 
 
 class XDMF(_TimeSeries):
     """An XDMF (``.xdmf`` + ``.h5``) time series, for tools that read XDMF only.
 
     Nodal fields are interpolated to the geometry's Lagrange degree (P1),
-    cell-wise constant ones written per cell (:class:`~hyperfem.io.XDMFOutput`);
+    cell-wise constant ones written per cell (:class:`~hyperfem.io.XDMFWriter`);
     prefer :class:`VTX`, which keeps the degree of the fields.
 
     Args:
@@ -225,8 +225,8 @@ class XDMF(_TimeSeries):
     ):
         super().__init__(path, functions, times, role)
 
-    def _open(self, comm, path: Path, functions: list[fem.Function]) -> XDMFOutput:
-        return XDMFOutput(comm, path, functions)
+    def _open(self, comm, path: Path, functions: list[fem.Function]) -> XDMFWriter:
+        return XDMFWriter(comm, path, functions)
 
 
 class JSONSummary(Output):
