@@ -19,7 +19,8 @@ import hyperfem as hf
 from hyperfem.app import check_groups, load_case, plan, script
 from hyperfem.app.build import build_domain
 from hyperfem.app.casefile import CaseFileError, apply_overrides, check_case, parse_toml
-from hyperfem.app.python_equivalent import imports, must_hit_times
+from hyperfem.app.calls import Call, evaluate, source
+from hyperfem.app.plan import must_hit_times
 from hyperfem.app.spec import LAME_LAWS
 from hyperfem.loading import AffineField, Scaled, Table
 
@@ -67,23 +68,27 @@ def test_example_case_validates(name, materials, dynamic, mixed):
 
 
 def test_case_maps_one_to_one_onto_the_api(write):
-    """The statements are the API calls with exactly the given keys (library defaults for the rest)."""
+    """The statements are calls of the API objects themselves with exactly the given keys (defaults for the rest)."""
     case = load_case(write(BASE + "\n[stepping]\nincrement = 0.5\n[output]\nprobes = [[4.5, 1.5, 1.5]]\n"))
     by_target = {s.target: s for s in plan(case)}
-    assert by_target["domain"].expression == f"hf.read_mesh({str(MESH)!r}, comm)"
-    assert by_target["params"].expression == "hf.materials.LameParameters.from_youngs(E=1000000.0, nu=0.3)"
-    assert by_target["material"].expression == "hf.materials.with_parameters(hf.materials.neo_hookean, params)"
-    assert by_target["bcs"].items == (("bc[0]", "hf.Clamp('clamped')"),)
-    assert by_target["loads"].items == (("load[0]", "hf.DeadTraction('free_end', (0.0, -5000.0, 0.0))"),)
-    assert by_target["problem"].expression == "hf.HyperelasticProblem(domain, material, bcs=bcs, loads=loads)"
-    assert by_target["solver"].expression == "hf.NewtonSolver(problem)"
-    assert by_target["stepping"].expression == "hf.LoadStepping(initial_increment=0.5)"
-    outputs = [expr.split("(")[0] for _, expr in by_target["outputs"].items]
+    assert by_target["domain"].value.function is hf.read_mesh
+    assert source(by_target["domain"].value) == f"hf.read_mesh({str(MESH)!r}, comm)"
+    assert source(by_target["params"].value) == "hf.materials.LameParameters.from_youngs(E=1000000.0, nu=0.3)"
+    assert source(by_target["material"].value) == "hf.materials.with_parameters(hf.materials.neo_hookean, params)"
+    assert [(k, source(v)) for k, v in by_target["bcs"].items] == [("bc[0]", "hf.Clamp('clamped')")]
+    assert by_target["bcs"].items[0][1].function is hf.Clamp
+    loads = [(k, source(v)) for k, v in by_target["loads"].items]
+    assert loads == [("load[0]", "hf.DeadTraction('free_end', (0.0, -5000.0, 0.0))")]
+    assert source(by_target["problem"].value) == "hf.HyperelasticProblem(domain, material, bcs=bcs, loads=loads)"
+    assert source(by_target["solver"].value) == "hf.NewtonSolver(problem)"
+    assert source(by_target["stepping"].value) == "hf.LoadStepping(initial_increment=0.5)"
+    outputs = [node.function.__name__ for _, node in by_target["outputs"].items]
     assert outputs == [
         "Probe", "Reactions", "CSVLog", "JSONSummary", "ConvergenceLog", "FieldOutput", "Checkpoint", "Progress"
     ]
+    assert all(isinstance(node, Call) for _, node in by_target["outputs"].items)
     checkpoint = dict(by_target["outputs"].items)["output.checkpoint_every"]
-    assert checkpoint == "Checkpoint(out / 'case.checkpoint', every=10)"
+    assert source(checkpoint) == "Checkpoint(out / 'case.checkpoint', every=10)"
     assert case.output.directory == Path("output") / "case"
 
 
@@ -95,15 +100,14 @@ def test_lame_laws_build_their_parameters(write, tmp_path):
                           f"mu = {expected.mu!r}\nbulk_modulus = {expected.bulk_modulus!r}"):
             text = BASE.replace("E = 1.0e6\nnu = 0.3", constants).replace("neo_hookean", law)
             case = load_case(write(text), output=tmp_path / "out")
-            namespace = {"comm": MPI.COMM_WORLD}
-            exec("\n".join(imports(plan(case))), namespace)
+            variables = {"comm": MPI.COMM_WORLD}
             for statement in plan(case):
                 if statement.target in ("params", "material"):
-                    namespace[statement.target] = eval(statement.expression, namespace)
-            params = namespace["params"]
+                    variables[statement.target] = evaluate(statement.value, variables)
+            params = variables["params"]
             assert math.isclose(params.mu, expected.mu, rel_tol=1e-12)
             assert math.isclose(params.lmbda, expected.lmbda, rel_tol=1e-9)
-            assert callable(namespace["material"])
+            assert callable(variables["material"])
 
 
 # -- the bad-input catalogue (in-process) -------------------------------------------------------

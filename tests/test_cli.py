@@ -316,7 +316,7 @@ def test_restart_continues_as_the_uninterrupted_run(shared_tmp):
     part = load_case(CASES / "bend.toml", [*over, "stepping.end=0.5"], output=shared_tmp / "part")
     first = build(part).simulation.run()
     assert first["steps"] == 2 and first["completed"]
-    from hyperfem.app.python_equivalent import checkpoint_folder
+    from hyperfem.app.plan import checkpoint_folder
 
     case = load_case(CASES / "bend.toml", over, output=shared_tmp / "part")
     again = build(case).simulation.run(restart=checkpoint_folder(case))

@@ -121,5 +121,5 @@ def test_printed_script_takes_profiles_motions_and_fields_from_loading(tmp_path)
     assert "hyperfem.app.functions" not in text and "dyn." not in text
     compile(text, "loading.py", "exec")
     built = build(case)
-    bc = built.bcs[1]
+    bc = built.variables["bcs"][1]
     assert bc.boundary == "free_end" and bc.value.angle(0.5) == pytest.approx(0.1)

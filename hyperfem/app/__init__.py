@@ -1,8 +1,10 @@
 """The ``hyperfem`` command and its TOML case files.
 
 * :mod:`~hyperfem.app.casefile` — the case schema, validation, ``--set`` overrides (:func:`load_case`);
-* :mod:`~hyperfem.app.python_equivalent` — the case as Python statements (:func:`script`);
-* :mod:`~hyperfem.app.build` — those statements evaluated: the objects of the run (:func:`build`);
+* :mod:`~hyperfem.app.plan` — the case as a plan of calls to the library (:func:`plan`), made of the
+  nodes of :mod:`~hyperfem.app.calls`;
+* :mod:`~hyperfem.app.build` — that plan called: the objects of the run (:func:`build`);
+* :mod:`~hyperfem.app.script` — the same plan printed as a Python program (:func:`script`, ``--print-python``);
 * :mod:`~hyperfem.app.main` — the argument parser and the subcommands.
 
 >>> from hyperfem.app import build, load_case
@@ -12,7 +14,8 @@
 
 from hyperfem.app.build import Built, build, check_groups, check_mesh
 from hyperfem.app.casefile import Case, CaseFileError, load_case
-from hyperfem.app.python_equivalent import plan, script
+from hyperfem.app.plan import plan
+from hyperfem.app.script import script
 
 __all__ = [
     "Built",

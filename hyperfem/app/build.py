@@ -1,13 +1,15 @@
 """Case → objects: the mesh, materials, loads, conditions, problem, solver, stepping and the Simulation.
 
-:func:`build` evaluates the statements of :func:`hyperfem.app.python_equivalent.plan`
-— the ones ``hyperfem run --print-python`` prints — one by one, in a namespace
-with the script's imports, on every rank. So ``hyperfem run`` builds exactly
-the objects of that script (:class:`~hyperfem.HyperelasticProblem` or
+:func:`build` calls the statements of :func:`hyperfem.app.plan.plan` — the ones
+``hyperfem run --print-python`` prints — one by one
+(:func:`hyperfem.app.calls.evaluate`: each constructor called with the values of
+the earlier statements), on every rank. So ``hyperfem run`` builds exactly the
+objects of that script (:class:`~hyperfem.HyperelasticProblem` or
 :class:`~hyperfem.problem.MixedHyperelasticProblem`, an
 :class:`~hyperfem.dynamics.IncrementalProblem` for a dynamic run, the
 :class:`~hyperfem.NewtonSolver`, the stepping preset and the
-:class:`~hyperfem.simulation.Simulation` with its outputs): one code path.
+:class:`~hyperfem.simulation.Simulation` with its outputs): one code path, and
+no source text is run.
 
 Between reading the mesh and building anything on it, :func:`check_mesh`
 checks every physical-group name of the case against the mesh (with a
@@ -19,16 +21,23 @@ case key (``bc[0]: ...``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 from mpi4py import MPI
 
-from hyperfem.app.casefile import Case
-from hyperfem.app.python_equivalent import Statement, imports, plan
+from hyperfem.app.calls import evaluate
+from hyperfem.app.plan import Statement, plan
 from hyperfem.app.report import say, warn
 from hyperfem.app.schema import CaseFileError, suggestion
+from hyperfem.app.spec import Case
 from hyperfem.errors import HyperfemError, MeshError
+from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.orientation import domain_orientation
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.simulation.outputs import Output
+from hyperfem.simulation.runner import Simulation
+from hyperfem.solver.newton import NewtonSolver
 
 __all__ = ["Built", "build", "build_domain", "check_dimensions", "check_groups", "check_mesh"]
 
@@ -39,18 +48,24 @@ class Built:
 
     Attributes:
         case: The case.
-        namespace: Every variable of the script (``domain``, ``problem``, ``solver``, ``stepping``,
-            ``outputs``, ``simulation``, ``materials``/``material``, ``bcs``, ``loads``, ...).
+        domain: The mesh and its named groups.
+        problem: The problem the solver solves (for a dynamic run: its time step).
+        solver: The Newton solver.
+        stepping: The load or time stepping.
+        outputs: The observers of the run.
+        simulation: The run.
+        variables: Every variable of the script, the above included (``materials``/``material``,
+            ``params``, ``bcs``, ``loads``, ``fibres``, ``base``, ...).
     """
 
     case: Case
-    namespace: dict
-
-    def __getattr__(self, name: str):
-        try:
-            return self.__dict__["namespace"][name]
-        except KeyError:
-            raise AttributeError(name) from None
+    domain: Domain
+    problem: SolidProblem
+    solver: NewtonSolver
+    stepping: Any
+    outputs: list[Output]
+    simulation: Simulation
+    variables: dict[str, Any] = field(default_factory=dict)
 
 
 def _groups(case: Case) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
@@ -141,27 +156,20 @@ def check_mesh(case: Case, domain, *, echo: bool = False) -> None:
         )
 
 
-def _evaluate(expression: str, key: str, namespace: dict, case: Case):
-    code = compile(expression, f"<{case.source.name}: {key}>", "eval")
+def _value(node: object, key: str, variables: dict, case: Case) -> object:
+    """The value of one plan node; a hyperfem error comes back naming the case key (``bc[0]: ...``)."""
     try:
-        return eval(code, namespace)  # noqa: S307 - our own plan, built from literals of checked values
+        return evaluate(node, variables)
     except CaseFileError:
         raise
     except HyperfemError as exc:
         raise CaseFileError(f"{key}: {exc}", case.source) from exc
 
 
-def _namespace(statements: list[Statement], case: Case, comm: MPI.Comm) -> dict:
-    """The script's globals: ``comm`` and the imports of ``statements``."""
-    namespace: dict = {"comm": comm, "__name__": f"hyperfem-case:{case.name}"}
-    exec("\n".join(imports(statements)), namespace)  # noqa: S102 - fixed import lines of the plan
-    return namespace
-
-
-def _run(statement: Statement, namespace: dict, case: Case):
+def _run(statement: Statement, variables: dict, case: Case) -> object:
     if statement.items is None:
-        return _evaluate(statement.expression, statement.key, namespace, case)
-    return [_evaluate(expr, key, namespace, case) for key, expr in statement.items]
+        return _value(statement.value, statement.key, variables, case)
+    return [_value(node, key, variables, case) for key, node in statement.items]
 
 
 def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) -> Built:
@@ -177,12 +185,11 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) ->
         OutputError: The output folder cannot be written.
         MeshError: The mesh cannot be read, or has degenerate cells.
     """
-    statements = plan(case)
-    namespace = _namespace(statements, case, comm)
-    for statement in statements:
-        value = _run(statement, namespace, case)
+    variables: dict[str, Any] = {"comm": comm}
+    for statement in plan(case):
+        value = _run(statement, variables, case)
         if statement.target is not None:
-            namespace[statement.target] = value
+            variables[statement.target] = value
         if statement.target == "domain":
             check_mesh(case, value, echo=echo)
             if echo:
@@ -190,14 +197,14 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) ->
                 kind = "dynamic" if case.dynamic else "quasi-static"
                 say(f"{case.name} ({case.source}): {kind}, {comm.size} rank(s); mesh {value.source}: {cells} cells",
                     comm)
-    return Built(case, namespace)
+    names = ("domain", "problem", "solver", "stepping", "outputs", "simulation")
+    return Built(case, **{n: variables[n] for n in names}, variables=variables)
 
 
-def build_domain(case: Case, comm: MPI.Comm = MPI.COMM_WORLD):
+def build_domain(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
     """Only the mesh of ``case`` (its ``domain`` statement; collective), e.g. to check the case."""
-    statements = plan(case)
-    namespace = _namespace(statements, case, comm)
-    for statement in statements:  # the domain and what it refers to (the case folder)
+    variables: dict[str, Any] = {"comm": comm}
+    for statement in plan(case):  # the domain and what it refers to (the case folder)
         if statement.target in ("case_dir", "domain"):
-            namespace[statement.target] = _run(statement, namespace, case)
-    return namespace["domain"]
+            variables[statement.target] = _run(statement, variables, case)
+    return variables["domain"]

@@ -329,7 +329,8 @@ def _on_rank0(action):
 def _run(args) -> dict | None:
     from hyperfem.app.build import build
     from hyperfem.app.casefile import load_case
-    from hyperfem.app.python_equivalent import checkpoint_folder, script
+    from hyperfem.app.plan import checkpoint_folder
+    from hyperfem.app.script import script
     from hyperfem.simulation import format_summary
 
     case = load_case(args.case, args.overrides, output=args.output)
@@ -377,7 +378,7 @@ def _vector(values) -> str:
 def _check(args) -> None:
     from hyperfem.app.build import build_domain, check_mesh
     from hyperfem.app.casefile import load_case
-    from hyperfem.app.python_equivalent import plan
+    from hyperfem.app.plan import plan
 
     case = load_case(args.case, args.overrides)
     statements = plan(case)  # the script can be written
@@ -499,7 +500,7 @@ def _render_picture(args) -> None:
 
     from hyperfem.app.build import build
     from hyperfem.app.casefile import load_case
-    from hyperfem.app.python_equivalent import checkpoint_folder
+    from hyperfem.app.plan import checkpoint_folder
     from hyperfem.app.spec import RenderSpec
     from hyperfem.io.checkpoint import resolve_checkpoint
     from hyperfem.simulation.checkpoint import load_checkpoint

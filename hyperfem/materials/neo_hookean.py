@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import ufl
 
-from hyperfem.kinematics import jacobian, right_cauchy_green
+from hyperfem.kinematics import isochoric_invariants, jacobian, right_cauchy_green
 from hyperfem.materials.parameters import LameParameters
 
-__all__ = ["neo_hookean", "neo_hookean_stress"]
+__all__ = ["neo_hookean", "neo_hookean_isochoric", "neo_hookean_stress"]
 
 
 def neo_hookean(F: ufl.core.expr.Expr, params: LameParameters) -> ufl.core.expr.Expr:
@@ -40,3 +40,13 @@ def neo_hookean_stress(F: ufl.core.expr.Expr, params: LameParameters) -> ufl.cor
     r"""Closed-form :math:`P = \mu F + (\lambda \ln J - \mu) F^{-T}` (for verification only)."""
     J = jacobian(F)
     return params.mu * F + (params.lmbda * ufl.ln(J) - params.mu) * ufl.inv(F).T
+
+
+def neo_hookean_isochoric(F: ufl.core.expr.Expr, mu: float | ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    r"""The isochoric Neo-Hookean part :math:`\frac{\mu}{2}(\bar I_1 - 3)` of a split energy (mixed formulation).
+
+    Args:
+        F: Deformation gradient (3×3).
+        mu: Shear modulus.
+    """
+    return 0.5 * mu * (isochoric_invariants(F)[0] - 3.0)
