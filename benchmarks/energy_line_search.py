@@ -78,7 +78,7 @@ def hyperfem_run(domain, degree):
         degree=degree,
     )
     solver = hf.NewtonSolver(problem)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     rec = solver.solve()
     return problem.u, {"iterations": rec.iterations, "reason": rec.reason, "time_s": rec.wall_time}
 

@@ -36,7 +36,7 @@ def run(domain, degree: int, variant: str) -> dict:
         solver = hf.NewtonSolver(problem, petsc_options=dict(DIRECT))
     else:
         solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, threshold=0))
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     solver.solve(raise_on_failure=True)
     problem.u.x.array[:] = 0.0
     start = time.perf_counter()

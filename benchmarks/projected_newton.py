@@ -133,7 +133,7 @@ def run(case: str, solver_name: str, mode: str, switch: float) -> dict:
     probe = PointProbe(problem.domain.mesh, [TEST_POINT])
     start = time.perf_counter()
     if mode == "single":
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         records = [solver.solve()]
         converged, steps, rejected = records[0].converged, 1, 0
     else:

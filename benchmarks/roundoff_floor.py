@@ -41,7 +41,7 @@ def solve(mesh: str, degree: int, case: str, roundoff_factor: float):
         domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[load], degree=degree
     )
     solver = hf.NewtonSolver(problem, TIGHT, roundoff_factor=roundoff_factor)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     record = solver.solve()
     return problem, solver, record
 

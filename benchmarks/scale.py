@@ -96,7 +96,7 @@ def single(args) -> None:
         problem = MixedHyperelasticProblem(
             domain, material, bcs=[hf.Clamp("clamped")], loads=[load], degree=max(args.degree, 2)
         )
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         if args.variant.startswith("hyperfem"):
             forced = {"hyperfem-iterative": 0, "hyperfem-direct": 2**62}.get(args.variant)
             linear = None if forced is None else choose_linear_solver(problem, mixed_threshold=forced)
@@ -141,7 +141,7 @@ def single(args) -> None:
         forced = {"hyperfem-iterative": 0, "hyperfem-direct": 2**62}.get(args.variant)
         linear = None if forced is None else choose_linear_solver(problem, threshold=forced)
         solver = hf.NewtonSolver(problem, linear_solver=linear)
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         setup = time.perf_counter() - t0
         before = _events()
         t1 = time.perf_counter()

@@ -60,7 +60,7 @@ def run(mesh: Path, case: str, scale: float, step_filter: str, safety: float) ->
     for step_filter_ in solver.step_filters.filters:
         if isinstance(step_filter_, ExactInversionFilter):
             step_filter_.safety = safety
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     rec = solver.solve()
     displacement = PointProbe(domain.mesh, [TEST_POINT])(problem.u)[0]
     comm = domain.comm

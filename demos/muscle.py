@@ -172,7 +172,7 @@ def run_experiment(kind, domain, a0, a0_out, args):
     sim.run()
     return {
         "steps": sim.rows,
-        "cutbacks": sum(st.cutbacks for st in sim.steps),
+        "cutbacks": sum(st.rejected for st in sim.steps),
         "insertion_area": insertion.area,
         "dofs": sim.dofs,
     }

@@ -80,17 +80,10 @@ class ConvergenceError(HyperfemError, RuntimeError):
         history: Records of the steps that did converge.
     """
 
-    def __init__(
-        self, message: str, time: float = 0.0, history: list | None = None, *, load_factor: float | None = None
-    ):
+    def __init__(self, message: str, time: float = 0.0, history: list | None = None):
         super().__init__(message)
-        self.time = float(time if load_factor is None else load_factor)
+        self.time = float(time)
         self.history = [] if history is None else history
-
-    @property
-    def load_factor(self) -> float:
-        """Alias of :attr:`time`."""
-        return self.time
 
 
 class SolverError(HyperfemError, RuntimeError):

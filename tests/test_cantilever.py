@@ -69,7 +69,7 @@ def test_energy_line_search_beats_residual_line_search():
         domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[bend_load()]
     )
     residual = hf.NewtonSolver(problem, energy_line_search=False)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     rec = residual.solve(raise_on_failure=True)
     # measured: 4 vs 18; bounds with slack (iteration counts are not round-off-level here, but
     # the last iterate of each solve decides by a factor ~1e3, not 1e6)
@@ -85,7 +85,7 @@ def _bend_solver(mesh="beam_h2.msh", options=None, **kwargs):
     problem = hf.HyperelasticProblem(
         domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[bend_load()]
     )
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     return problem, hf.NewtonSolver(problem, options, **kwargs)
 
 

@@ -59,7 +59,7 @@ def test_a_clamp_next_to_a_moving_face_is_refused(beam):
 )
 def test_conditions_that_agree_on_shared_nodes_are_accepted(beam, second):
     problem = _problem(beam, [hf.Clamp("clamped"), second])
-    problem.set_load_factor(0.7)
+    problem.set_time(0.7)
     assert problem.time == pytest.approx(0.7)
 
 
@@ -71,7 +71,7 @@ def test_values_that_part_later_are_refused_when_they_part(beam):
 
     problem = _problem(beam, [hf.Clamp("clamped"), hf.PrescribedDisplacement("surface", bump)])
     with pytest.raises(ParameterError, match=r"at load factor/time 0\.5, differing by up to 0\.025"):
-        problem.set_load_factor(0.5)
+        problem.set_time(0.5)
 
 
 @pytest.mark.serial
@@ -108,7 +108,7 @@ def test_callable_values_are_exact_on_every_boundary_dof_and_its_ghosts(comm, n)
     rotating = lambda x, s: np.vstack([0.0 * x[0], -s * x[2], s * x[1]])  # noqa: E731
     for value, at in ((shear, 1.0), (rotating, 0.5)):
         problem = _problem(domain, [hf.Clamp("x0"), hf.PrescribedDisplacement("x1", value)])
-        problem.set_load_factor(at)
+        problem.set_time(at)
         values = np.full(problem.u.x.array.size, np.nan)
         problem.bcs[-1].set(values)  # owned and ghost entries of the prescribed dofs
         prescribed = np.flatnonzero(np.isfinite(values))

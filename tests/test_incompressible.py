@@ -249,7 +249,7 @@ def test_homogeneous_stretch_stability():
     K, lam = 1e3, 2.0
     domain = _cube(4)
     problem = solid_problem(domain, _material(K, "log"), bcs=_rollers(lam))
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     _homogeneous_state(problem, lam, K, "log")
     problem.update_fields()
     nq = problem.Q.dofmap.index_map.size_global

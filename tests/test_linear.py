@@ -59,7 +59,7 @@ def test_rigid_body_modes_are_the_tangent_kernel():
         for j, s in enumerate(modes):
             assert r.dot(s) == pytest.approx(1.0 if i == j else 0.0, abs=1e-12)
     # ... and zero residual: a rigid translation/rotation of the unloaded body stores no energy
-    problem.set_load_factor(0.0)
+    problem.set_time(0.0)
     R = fem.form(problem.residual)
     for r in modes[:3]:  # translations are exact rigid motions at any amplitude
         problem.u.x.petsc_vec.array_w[:] = 0.3 * r.array_r
@@ -188,7 +188,7 @@ def test_mixed_fieldsplit_equals_direct(drive):
                 bcs=[hf.Clamp("clamped"), hf.PrescribedDisplacement("free_end", [-1.0], components=[1])]
             )
         solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, mixed_threshold=threshold))
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         rec = solver.solve(raise_on_failure=True)
         assert rec.linear_solver == ("preonly+lu(mumps)" if threshold else "fgmres+fieldsplit")
         if not threshold:

@@ -390,7 +390,7 @@ def test_cube_fibre_stretch_nominal_stress():
     for s_load, alpha in ((2.0, 0.5), (-2.0, 1.0), (3.0, 0.0)):  # lam = 1.2, 0.8, 1.3
         act.set(alpha)
         for frac in (0.5, 1.0):
-            problem.set_load_factor(frac * s_load)
+            problem.set_time(frac * s_load)
             assert solver.solve().converged
         lam = 1.0 + 0.1 * s_load
         expected, s_lat = _analytic_nominal_stress(lam, alpha, p)
@@ -401,5 +401,5 @@ def test_cube_fibre_stretch_nominal_stress():
         uy = problem.u.x.array.reshape(-1, 3)[corner, 1]
         if uy.size:
             np.testing.assert_allclose(uy, s_lat - 1.0, atol=1e-7)
-        problem.set_load_factor(0.0)
+        problem.set_time(0.0)
         problem.u.x.array[:] = 0.0

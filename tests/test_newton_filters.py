@@ -160,7 +160,7 @@ def test_half_step_filter_needs_more_iterations_for_the_same_state():
     for name, filters in (("plain", []), ("half", [HalfStep()])):
         problem = _bend()
         solver = hf.NewtonSolver(problem, {"snes_max_it": 200}, step_filters=filters)
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         record = solver.solve(raise_on_failure=True)
         results[name] = (record, PointProbe(problem.domain.mesh, [TEST_POINT])(problem.u)[0], filters)
     plain, half = results["plain"][0], results["half"][0]
@@ -176,7 +176,7 @@ def test_a_refusing_filter_fails_the_solve_as_a_domain_error():
     problem = _bend()
     solver = hf.NewtonSolver(problem)
     solver.add_step_filter(Refuse())
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     record = solver.solve()
     assert not record.converged
     assert record.reason_name == "DIVERGED_FUNCTION_DOMAIN"
@@ -215,7 +215,7 @@ def test_filters_are_checked():
             return 1.5
 
     solver.add_step_filter(TooLong())
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     with pytest.raises(ParameterError, match=r"TooLong.step_fraction returned 1.5; a step fraction must be in"):
         solver.solve()
 
@@ -240,14 +240,14 @@ def test_a_filter_acting_on_one_rank_acts_on_every_rank():
     """A refusal or a shorter step on one rank is agreed on every rank (it hung the others before)."""
     refused = _bend()
     solver = hf.NewtonSolver(refused, step_filters=[_OnLastRank(refuse=True)])
-    refused.set_load_factor(1.0)
+    refused.set_time(1.0)
     record = solver.solve()
     assert record.reason_name == "DIVERGED_FUNCTION_DOMAIN" and record.message == "penetration on the last rank"
     results = {}
     for name, custom in (("one rank", _OnLastRank(refuse=False)), ("every rank", HalfStep())):
         problem = _bend()
         solver = hf.NewtonSolver(problem, {"snes_max_it": 200}, step_filters=[custom])
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         results[name] = (solver.solve(raise_on_failure=True).residual_norms, problem.u.x.array.copy())
     assert results["one rank"][0] == pytest.approx(results["every rank"][0], rel=1e-8)
     np.testing.assert_allclose(results["one rank"][1], results["every rank"][1], rtol=0, atol=1e-12)

@@ -60,12 +60,12 @@ def test_predictor_solves_a_linear_problem():
         domain, lambda F: hf.materials.linear_elastic(F, params), bcs=_rollers(1.1)
     )
     solver = hf.NewtonSolver(problem)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     rec = solver.solve(raise_on_failure=True)
     assert rec.predictor
     assert rec.iterations <= 2  # 0 when the predicted residual is below atol, else one step to the floor
     off = hf.HyperelasticProblem(domain, lambda F: hf.materials.linear_elastic(F, params), bcs=_rollers(1.1))
-    off.set_load_factor(1.0)
+    off.set_time(1.0)
     hf.NewtonSolver(off, predictor=False).solve(raise_on_failure=True)
     np.testing.assert_allclose(problem.u.x.array, off.u.x.array, atol=1e-12)
 
@@ -112,7 +112,7 @@ def test_predictor_is_exact_for_a_linear_problem_at_every_step():
     solver = hf.NewtonSolver(problem)
     starts = []
     for s in (0.25, 0.5, 0.75, 1.0):
-        problem.set_load_factor(s)
+        problem.set_time(s)
         rec = solver.solve(raise_on_failure=True)
         assert rec.predictor
         starts.append(rec.residual_norms[0])
@@ -127,7 +127,7 @@ def test_a_solve_refused_at_its_start_reports_no_iterations():
     params = hf.materials.LameParameters.from_youngs(1.0, 0.3)
     problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params), bcs=_rollers(1.2))
     solver = hf.NewtonSolver(problem, predictor=False)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     first = solver.solve(raise_on_failure=True)
     assert first.iterations > 0
     # Fold the body through itself: every x-coordinate mirrored, J < 0 everywhere.

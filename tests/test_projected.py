@@ -292,7 +292,7 @@ def test_refresh_recomputes_only_when_the_state_changes():
 def _beam(load):
     domain = hf.read_mesh(MESHES / "beam_h2.msh")
     problem = hf.HyperelasticProblem(domain, nh(CantileverSpec().lame), bcs=[hf.Clamp("clamped")], loads=[load])
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     return problem
 
 

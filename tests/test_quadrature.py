@@ -58,7 +58,7 @@ def test_twist_moment_exact(mesh, degree):
         domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("clamped")], loads=[twist_load()],
         degree=degree,
     )
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     assert _assembled_moment(problem) == pytest.approx(EXACT_TWIST_MOMENT, rel=1e-12)
 
 

@@ -39,7 +39,7 @@ def test_invalid_petsc_option_value():
         hf.NewtonSolver(problem, {"pc_type": "no_such_pc"})
     # The failed construction left nothing behind in PETSc's options database.
     solver = hf.NewtonSolver(problem)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     assert solver.solve().converged
 
 
@@ -78,7 +78,7 @@ def test_callable_load_that_evaluates_to_nan():
     nan_traction = hf.DeadTraction("free_end", lambda X: ufl.as_vector((0.0, ufl.ln(X[0] - 100.0), 0.0)))
     problem = _beam_problem(loads=[nan_traction])
     solver = hf.NewtonSolver(problem)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     with pytest.raises(ParameterError, match="NaN/inf .*DeadTraction on 'free_end'"):
         solver.solve()
 
@@ -91,7 +91,7 @@ def test_exception_in_a_callback_surfaces():
         raise RuntimeError("energy assembly exploded")
 
     solver._energies = broken
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     with pytest.raises(RuntimeError, match="energy assembly exploded"):
         solver.solve()
 
@@ -101,7 +101,7 @@ def test_inconsistent_converged_state_is_a_failure():
     problem = _beam_problem()
     problem.check_solution = lambda: ({"volume_consistency": 0.3}, "J oscillates inside cells")
     solver = hf.NewtonSolver(problem)
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     rec = solver.solve()
     assert not rec.converged
     assert rec.message == "J oscillates inside cells"

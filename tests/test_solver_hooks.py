@@ -21,14 +21,14 @@ def test_state_hooks_see_every_assembled_state():
     problem = _problem()
     seen: list[float] = []
     solver = hf.NewtonSolver(problem, state_hooks=[lambda: seen.append(float(np.abs(problem.u.x.array).max()))])
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     record = solver.solve(raise_on_failure=True)
     # at least one residual and one tangent per Newton iteration, plus line-search energies
     assert len(seen) >= 2 * record.iterations
     np.testing.assert_allclose(seen[-1], np.abs(problem.u.x.array).max(), rtol=0, atol=0)
 
     reference = _problem()
-    reference.set_load_factor(1.0)
+    reference.set_time(1.0)
     hf.NewtonSolver(reference).solve(raise_on_failure=True)
     np.testing.assert_allclose(problem.u.x.array, reference.u.x.array, atol=1e-10)
 
@@ -36,14 +36,14 @@ def test_state_hooks_see_every_assembled_state():
 def test_replacement_tangent_changes_the_iterations_not_the_solution():
     """A scaled tangent (damped Newton) converges to the same state: the residual decides the answer."""
     problem = _problem()
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     scaled = 2.0 * problem.jacobian
     record = hf.NewtonSolver(problem, jacobian=scaled, energy_line_search=False,
                              petsc_options={"snes_linesearch_type": "basic", "snes_max_it": 200}).solve(
         raise_on_failure=True
     )
     reference = _problem()
-    reference.set_load_factor(1.0)
+    reference.set_time(1.0)
     exact = hf.NewtonSolver(reference).solve(raise_on_failure=True)
     assert record.iterations > exact.iterations  # half steps: linear convergence
     np.testing.assert_allclose(problem.u.x.array, reference.u.x.array, atol=1e-8)

@@ -250,7 +250,7 @@ def test_newton_with_exact_filter_converges_to_the_bisection_solution():
     for step_filter in ("exact", "bisection"):
         problem = _bend(scale=20.0)
         solver = hf.NewtonSolver(problem, step_filter=step_filter)
-        problem.set_load_factor(1.0)
+        problem.set_time(1.0)
         record = solver.solve(raise_on_failure=True)
         assert record.step_filter == step_filter
         assert record.min_J > 0.1

@@ -60,7 +60,7 @@ def _make_problem(loads) -> hf.HyperelasticProblem:
     problem = hf.HyperelasticProblem(
         domain, lambda F: neo_hookean(F, PARAMS), bcs=[hf.Clamp("left")], loads=loads
     )
-    problem.set_load_factor(1.0)
+    problem.set_time(1.0)
     rng = np.random.default_rng(17)  # same numbers on every rank
     cu = 0.08 * rng.standard_normal((3, 4))
     problem.u.interpolate(lambda x: _state(x, cu))

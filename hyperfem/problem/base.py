@@ -147,11 +147,6 @@ class EnergyProblem:
         """The time (load factor of a quasi-static ramp) the loads are at."""
         return self._time
 
-    @property
-    def load_factor(self) -> float:
-        """Alias of :attr:`time` (the pseudo-time of a quasi-static ramp)."""
-        return self._time
-
     def set_time(self, t_loads: float, t_bcs: float | None = None) -> None:
         """Move loads and updaters to ``t_loads`` and prescribed displacements to ``t_bcs``.
 
@@ -168,10 +163,6 @@ class EnergyProblem:
         self._agreement.check(t_bcs)
         for updater in self._updaters:
             updater.update(t_loads)
-
-    def set_load_factor(self, s: float) -> None:
-        """Alias of :meth:`set_time` with loads and boundary values at ``s``."""
-        self.set_time(s)
 
     def displacement(self, state: fem.Function | None = None) -> ufl.core.expr.Expr:
         """The displacement of ``state`` (default :attr:`u`): the function itself here."""

@@ -9,11 +9,12 @@ follower loads, :class:`HyperelasticProblem` builds (once)
     K(u; v, \delta u) = \frac{\partial R}{\partial u}[\delta u],
 
 with both derivatives taken by ``ufl.derivative``. Loads are
-:class:`dolfinx.fem.Constant` magnitudes set by :meth:`set_load_factor`; the
+:class:`dolfinx.fem.Constant` magnitudes set by :meth:`set_time`; the
 forms never need recompiling.
 
-Energies are callables ``psi(F)``. An energy object may also carry (all
-optional, read with ``getattr``):
+Energies are callables ``psi(F)``. An energy may also declare the extras of
+:class:`~hyperfem.problem.protocol.EnergyProtocol` (a plain callable gets the
+neutral ones from :func:`~hyperfem.problem.energy.as_energy`):
 
 * ``invertible`` — finite and restoring for :math:`J \le 0`
   (:mod:`hyperfem.materials.invertibility`); the problem is

@@ -141,7 +141,7 @@ class MixedHyperelasticProblem(EnergyProblem):
             ``degree - 1``; Taylor–Hood).
         quadrature_degree: Default :func:`~hyperfem.problem.default_quadrature_degree` of ``degree`` and
             the cell type (Q2 on hexahedra: 3 × 3 × 3 Gauss points).
-        updaters: Objects with ``update(s)`` called by :meth:`set_load_factor`
+        updaters: Objects with ``update(t)`` called by :meth:`set_time`
             (e.g. :class:`~hyperfem.loading.Activation`).
 
     Attributes:

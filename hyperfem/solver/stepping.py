@@ -325,21 +325,6 @@ class StepRecord:
         """Smallest quadrature-point :math:`J` of the accepted state."""
         return self.solve.min_J
 
-    @property
-    def increment(self) -> float:
-        """Alias of :attr:`dt`."""
-        return self.dt
-
-    @property
-    def cutbacks(self) -> int:
-        """Alias of :attr:`rejected`."""
-        return self.rejected
-
-    @property
-    def load_factor(self) -> float:
-        """Deprecated alias of :attr:`time`."""
-        return self.time
-
     def as_dict(self) -> dict:
         """JSON-serialisable summary (without the solve records)."""
         return {
