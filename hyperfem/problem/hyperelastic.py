@@ -47,7 +47,7 @@ from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDir
 from hyperfem.problem.base import EnergyProblem
 from hyperfem.problem.energy import as_energy, check_region_coverage, scalar_energy
 from hyperfem.problem.loads import Load
-from hyperfem.problem.protocol import Updater
+from hyperfem.problem.protocol import EnergyProtocol, Updater
 from hyperfem.problem.quadrature import check_volume_quadrature, volume_quadrature_degree
 
 __all__ = ["EnergyDensity", "HyperelasticProblem", "default_quadrature_degree"]
@@ -122,23 +122,7 @@ class HyperelasticProblem(EnergyProblem):
         invertible: bool | None = None,
     ):
         where = "HyperelasticProblem"
-        if not isinstance(domain, Domain):
-            raise ParameterError(
-                f"{where}: domain must be a hyperfem Domain (hf.read_mesh, hf.beam_mesh, Domain.from_locators), "
-                f"got {type(domain).__name__}"
-            )
-        if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 1):
-            raise ParameterError(f"{where}: degree must be an integer >= 1, got {degree!r}")
-        if quadrature_degree is not None and not (
-            isinstance(quadrature_degree, numbers.Integral)
-            and not isinstance(quadrature_degree, bool)
-            and quadrature_degree >= 1
-        ):
-            raise ParameterError(
-                f"{where}: quadrature_degree must be an integer >= 1 or None, got {quadrature_degree!r}"
-            )
-        if invertible is not None and not isinstance(invertible, bool):
-            raise ParameterError(f"{where}: invertible must be True, False or None, got {invertible!r}")
+        _check_arguments(domain, degree, quadrature_degree, invertible, where)
         bcs = as_sequence(bcs, "bcs", where)
         loads = as_sequence(loads, "loads", where)
         if not (callable(material) or isinstance(material, Mapping)):
@@ -152,22 +136,38 @@ class HyperelasticProblem(EnergyProblem):
         self.degree = degree
         self.quadrature_degree = quadrature_degree or default_quadrature_degree(degree, mesh.topology.cell_type)
         check_volume_quadrature(degree, self.quadrature_degree, mesh.topology.cell_type, where)
-        md = {"quadrature_degree": self.quadrature_degree}
         self._check_domain(domain, [(gdim, degree)], self.quadrature_degree)  # flat cells, size guard
         self.V = fem.functionspace(mesh, ("Lagrange", degree, (gdim,)))
         self.u = fem.Function(self.V, name="displacement")
         v = ufl.TestFunction(self.V)
         du = ufl.TrialFunction(self.V)
         self.F = deformation_gradient(self.u)
+        regions = _material_regions(domain, material, where)
+        energies, own_updaters, correction = self._add_energies(regions, updaters, invertible, where)
+        self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
+        # Loads: one Constant magnitude each, scaled by its profile.
+        self._derive_forms(self.u, v, v, du, loads, updaters=own_updaters, tangent_correction=correction)
+        self._check_rule_of_point_fields(energies, where)
 
-        # Stored energy, per region.
-        if callable(material):
-            regions = {None: material}
-        else:
-            if not material:
-                raise ParameterError(f"{where}: material mapping is empty")
-            check_region_coverage(domain, list(material), where)
-            regions = dict(material)
+    def _add_energies(
+        self,
+        regions: dict[str | None, EnergyDensity],
+        updaters: Iterable[Updater],
+        invertible: bool | None,
+        where: str,
+    ) -> tuple[list[tuple[EnergyDensity, EnergyProtocol]], list[Updater], ufl.Form | None]:
+        r"""The stored energy :math:`\sum_r \int_{\Omega_r} \psi_r(F)\,dX` and what the energies declare.
+
+        Binds each distinct energy to :attr:`F` on the volume rule and sets
+        :attr:`energy_internal`, :attr:`invertible` and :attr:`state_hooks`.
+
+        Returns:
+            Each distinct energy with its :class:`~hyperfem.problem.protocol.EnergyProtocol` view;
+            the problem's updaters (``updaters``, then the energies' own, each once);
+            the energies' tangent corrections as one form, or ``None``.
+        """
+        md = {"quadrature_degree": self.quadrature_degree}
+        domain = self.domain
         distinct = list({id(psi): psi for psi in regions.values()}.values())
         energies = {id(psi): as_energy(psi) for psi in distinct}
         for psi in regions.values():
@@ -190,11 +190,11 @@ class HyperelasticProblem(EnergyProblem):
         correction = (
             sum(c * domain.dx(name, metadata=md) for name, c in corrections) if corrections else None
         )
-        self._dirichlet = [_CompiledDirichlet(bc, self.V, domain) for bc in bcs]
+        return [(psi, energies[id(psi)]) for psi in distinct], own_updaters, correction
 
-        # Loads: one Constant magnitude each, scaled by its profile.
-        self._derive_forms(self.u, v, v, du, loads, updaters=own_updaters, tangent_correction=correction)
-        on_points = [psi for psi in distinct if energies[id(psi)].quadrature_rule_degree is not None]
+    def _check_rule_of_point_fields(self, energies: list[tuple[EnergyDensity, EnergyProtocol]], where: str) -> None:
+        """Energies holding fields on quadrature points need the volume rule unchanged by the loads."""
+        on_points = [psi for psi, energy in energies if energy.quadrature_rule_degree is not None]
         if on_points:
             raised = {
                 itg.metadata().get("quadrature_degree")
@@ -207,3 +207,32 @@ class HyperelasticProblem(EnergyProblem):
                     f"{type(on_points[0]).__name__} holds fields on the points of degree {self.quadrature_degree}; "
                     f"pass quadrature_degree={max(raised)}"
                 )
+
+
+def _check_arguments(domain, degree, quadrature_degree, invertible, where: str) -> None:
+    """The domain, the degrees and ``invertible`` of a :class:`HyperelasticProblem`."""
+    if not isinstance(domain, Domain):
+        raise ParameterError(
+            f"{where}: domain must be a hyperfem Domain (hf.read_mesh, hf.beam_mesh, Domain.from_locators), "
+            f"got {type(domain).__name__}"
+        )
+    if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 1):
+        raise ParameterError(f"{where}: degree must be an integer >= 1, got {degree!r}")
+    if quadrature_degree is not None and not (
+        isinstance(quadrature_degree, numbers.Integral)
+        and not isinstance(quadrature_degree, bool)
+        and quadrature_degree >= 1
+    ):
+        raise ParameterError(f"{where}: quadrature_degree must be an integer >= 1 or None, got {quadrature_degree!r}")
+    if invertible is not None and not isinstance(invertible, bool):
+        raise ParameterError(f"{where}: invertible must be True, False or None, got {invertible!r}")
+
+
+def _material_regions(domain: Domain, material, where: str) -> dict[str | None, EnergyDensity]:
+    """Region name (``None``: the whole domain) → energy; a mapping's regions must cover the mesh (collective)."""
+    if callable(material):
+        return {None: material}
+    if not material:
+        raise ParameterError(f"{where}: material mapping is empty")
+    check_region_coverage(domain, list(material), where)
+    return dict(material)
