@@ -42,6 +42,7 @@ from hyperfem.simulation.outputs import (
     CSVLog,
     Derived,
     JSONSummary,
+    OnStep,
     Output,
     Progress,
     Quantity,
@@ -54,7 +55,7 @@ from hyperfem.simulation.reactions import DirichletReactions, ReactionResult, Re
 from hyperfem.simulation.fields import FieldOutput, cell_field_expressions, von_mises
 from hyperfem.simulation.render import Render, Surface, boundary_surface, render_png
 from hyperfem.simulation.checkpoint import Checkpoint, CheckpointError, StepperState
-from hyperfem.simulation.runner import Fields, Simulation
+from hyperfem.simulation.runner import Simulation, StateFunctions
 
 __all__ = [
     "VTX",
@@ -69,8 +70,8 @@ __all__ = [
     "Derived",
     "DirichletReactions",
     "FieldOutput",
-    "Fields",
     "JSONSummary",
+    "OnStep",
     "Output",
     "Probe",
     "Progress",
@@ -82,6 +83,7 @@ __all__ = [
     "Recorder",
     "Render",
     "Simulation",
+    "StateFunctions",
     "StepperState",
     "Surface",
     "boundary_surface",

@@ -266,7 +266,8 @@ def load_checkpoint(sim, path: str | Path) -> dict:
         p.restore(DynamicState(t, p.u.x.array, p.v.x.array, p.a.x.array))
     else:
         sim.problem.set_time(t)
-    sim.solver.refresh()  # state hooks (e.g. a material's rotation field) at the loaded state
+    if sim.solver is not None:  # the explicit scheme runs its hooks before every force assembly
+        sim.solver.refresh()  # state hooks (e.g. a material's rotation field) at the loaded state
     return meta
 
 

@@ -4,7 +4,7 @@ r"""Derived output fields: displacement, Cauchy stress, von Mises stress, :math:
 the default) or XDMF:
 
 * ``displacement`` — the nodal fields of the run
-  (:meth:`~hyperfem.simulation.Fields.output`: displacement; pressure of the
+  (:meth:`~hyperfem.simulation.StateFunctions.output`: displacement; pressure of the
   three-field problem; velocity of a dynamic run);
 * ``cauchy_stress`` — :math:`\sigma = J^{-1} P F^T`, :math:`P = \partial W/\partial F`
   per region (:func:`~hyperfem.simulation.measures.cauchy_stress`; the mixed

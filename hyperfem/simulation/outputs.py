@@ -25,11 +25,13 @@ as XDMF, P1/DG0), :class:`CSVLog` (one line per state), :class:`JSONSummary`
 (the Newton residual norms of every step, one JSON line each),
 :class:`Progress` (a line on rank 0). Adapters: :class:`Quantity` (a
 column from a callable), :class:`Recorder` (an object with ``record(step)``,
-e.g. :class:`~hyperfem.dynamics.Diagnostics`), :class:`Derived` (a summary
-entry computed from the others). The measures of mechanics (probes, reaction
-forces, bulge, cell fields) are in :mod:`hyperfem.simulation.measures` and
-:mod:`hyperfem.simulation.reactions`, derived fields (stress, J, fibre
-stretch) in :mod:`hyperfem.simulation.fields`.
+e.g. :class:`~hyperfem.dynamics.Diagnostics`, which measures and writes
+nothing: its rows reach files through :class:`CSVLog` and
+:class:`JSONSummary`), :class:`Derived` (a summary entry computed from the
+others), :class:`OnStep` (a callback per accepted step). The measures of
+mechanics (probes, reaction forces, bulge, cell fields) are in
+:mod:`hyperfem.simulation.measures` and :mod:`hyperfem.simulation.reactions`,
+derived fields (stress, J, fibre stretch) in :mod:`hyperfem.simulation.fields`.
 
 A restarted run cannot append to the VTX/XDMF files of the first one
 (DOLFINx writers start a new file), so it writes its frames to
@@ -52,6 +54,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import fem
 
+from hyperfem.errors import ParameterError
 from hyperfem.io.results import VTXWriter, XDMFWriter, ensure_output_dir, flatten_row, on_rank0, write_json
 from hyperfem.solver.stepping import StepRecord
 
@@ -61,6 +64,7 @@ __all__ = [
     "ConvergenceLog",
     "Derived",
     "JSONSummary",
+    "OnStep",
     "Output",
     "Progress",
     "Quantity",
@@ -98,6 +102,17 @@ class Output:
 
     def restart(self, sim, state: dict | None) -> None:
         """Continue from a checkpoint: ``sim.rows`` holds the rows so far, ``state`` what :meth:`state` returned."""
+
+
+def _check_every(where: str, every: int) -> int:
+    if not (isinstance(every, int) and not isinstance(every, bool) and every >= 1):
+        raise ParameterError(f"{where}: every must be an integer >= 1, got {every!r}")
+    return every
+
+
+def _due(step: StepRecord | None, every: int) -> bool:
+    """Whether an output with ``every`` acts on this state: the initial one, and every n-th step."""
+    return step is None or step.step % every == 0
 
 
 def continuation_path(path: str | Path, step: int) -> Path:
@@ -180,7 +195,7 @@ class VTX(_TimeSeries):
     Args:
         path: The ``.bp`` folder.
         functions: What to write; default the simulation's
-            :meth:`~hyperfem.simulation.Fields.output` (displacement; pressure
+            :meth:`~hyperfem.simulation.StateFunctions.output` (displacement; pressure
             of the three-field problem; velocity of a dynamic run).
         times: Write only when a step reaches or passes the next of these
             times (use must-hit times to land on them); ``None``: every step.
@@ -266,10 +281,13 @@ class CSVLog(Output):
 
     Args:
         path: The ``.csv`` file (overwritten at the start).
+        every: Write the initial state and every n-th step only (as
+            :class:`Recorder` with the same ``every`` measures them).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, every: int = 1):
         self.path = Path(path)
+        self.every = _check_every("CSVLog", every)
         self._columns: list[str] | None = None
 
     def start(self, sim) -> None:
@@ -279,7 +297,9 @@ class CSVLog(Output):
         self._columns = None
 
     def write(self, sim, step: StepRecord | None) -> None:
-        """Append the current row."""
+        """Append the current row (if it is due)."""
+        if not _due(step, self.every):
+            return
         row = flatten_row(sim.rows[-1])
         first = self._columns is None
         if first:
@@ -296,8 +316,8 @@ class CSVLog(Output):
         on_rank0(sim.comm, append, f"cannot write {self.path}")
 
     def restart(self, sim, state: dict | None) -> None:
-        """Rewrite the file with the rows kept in the checkpoint."""
-        rows = [flatten_row(row) for row in sim.rows]
+        """Rewrite the file with the rows kept in the checkpoint (those that were due)."""
+        rows = [flatten_row(row) for row in sim.rows if int(row.get("step", 0)) % self.every == 0]
         self._columns = list(rows[0]) if rows else None
         columns = self._columns
 
@@ -469,14 +489,21 @@ class Recorder(Output):
 
     E.g. :class:`~hyperfem.dynamics.Diagnostics` (energies, volume, probe
     positions of a dynamic run).
+
+    Args:
+        recorder: The object.
+        every: Record the initial state and every n-th step only (the rows
+            of the other steps lack the recorder's columns; the recorder's
+            summary covers the states it recorded).
     """
 
-    def __init__(self, recorder):
+    def __init__(self, recorder, *, every: int = 1):
         self.recorder = recorder
+        self.every = _check_every("Recorder", every)
 
     def measure(self, sim, step: StepRecord | None) -> dict:
-        """The recorder's row."""
-        return dict(self.recorder.record(step))
+        """The recorder's row (if it is due)."""
+        return dict(self.recorder.record(step)) if _due(step, self.every) else {}
 
     def summary(self, sim, summary: dict) -> dict:
         """The recorder's summary, if it has one."""
@@ -493,6 +520,22 @@ class Recorder(Output):
         rows = getattr(self.recorder, "rows", None)  # boundary: a user recorder may keep no rows
         if state is not None and isinstance(rows, list):
             rows[:] = state["rows"]
+
+
+class OnStep(Output):
+    """Call ``callback(record)`` with the :class:`~hyperfem.solver.stepping.StepRecord` of every accepted step.
+
+    The ``on_step`` argument of :func:`~hyperfem.dynamics.integrate_explicit` and
+    :func:`~hyperfem.dynamics.integrate_semi_implicit`; not called for the initial state.
+    """
+
+    def __init__(self, callback: Callable[[StepRecord], None]):
+        self.callback = callback
+
+    def write(self, sim, step: StepRecord | None) -> None:
+        """Call the callback (after the row is complete)."""
+        if step is not None:
+            self.callback(step)
 
 
 class Derived(Output):

@@ -3,11 +3,15 @@
 :class:`Simulation` is the same for statics and dynamics: it wraps the
 problem in a :class:`~hyperfem.solver.stepping.QuasiStaticStage`, or in a
 :class:`~hyperfem.solver.stepping.DynamicStage` when the problem is a time
-step (:class:`~hyperfem.dynamics.IncrementalProblem`), and steps it with
+step (:class:`~hyperfem.dynamics.IncrementalProblem`), or in the stage it is
+given (``stage=``: :class:`~hyperfem.dynamics.SemiImplicitStage` for one
+linearization per step, :class:`~hyperfem.dynamics.ExplicitStage` for the
+central differences of :class:`~hyperfem.dynamics.ExplicitDynamics`, which
+steps itself and takes no Newton solver), and steps it with
 :func:`~hyperfem.solver.stepping.run_steps`. After the initial state and
 after every accepted step it
 
-1. refreshes :class:`Fields` (the displacement, pressure and velocity as
+1. refreshes :class:`StateFunctions` (the displacement, pressure and velocity as
    plain functions, for the three-field problem too),
 2. builds one *row*: step, time, increment, Newton iterations, rejected
    attempts, min J, the solver's consistency indicators, and the columns
@@ -27,6 +31,9 @@ state (:mod:`hyperfem.simulation.checkpoint`): same problem, solver, outputs
 and policy as the run that wrote it (the end time may differ) and the same
 mesh, on any number of ranks. Steps are numbered on from the checkpoint, and the rows,
 summary and files continue those of the first run.
+
+The real-time stepper (:class:`~hyperfem.dynamics.RealtimeStepper`) is the
+one time stepper that does not run here; its module says why.
 """
 
 from __future__ import annotations
@@ -41,7 +48,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from hyperfem.errors import ConvergenceError, Interrupted
+from hyperfem.errors import ConvergenceError, Interrupted, ParameterError
 from hyperfem.mesh.quality import MeshQuality, mesh_quality
 from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepProblem, TimeStepState
 from hyperfem.simulation import checkpoint as _checkpoint
@@ -49,7 +56,7 @@ from hyperfem.simulation.interrupt import InterruptGuard
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
 
-__all__ = ["LARGE_DISPLACEMENT", "Fields", "LargeDisplacementWarning", "Simulation"]
+__all__ = ["LARGE_DISPLACEMENT", "LargeDisplacementWarning", "Simulation", "StateFunctions"]
 
 LARGE_DISPLACEMENT = 10.0
 """A displacement this many times the body's size draws a :class:`LargeDisplacementWarning`."""
@@ -75,16 +82,18 @@ def _matched_states(outputs: Sequence, saved: list[dict]) -> list[dict | None]:
     return out
 
 
-class Fields:
-    """The state of a problem as plain functions for output and measurement.
+class StateFunctions:
+    """The state of a problem as plain functions for output and measurement (``Simulation.fields``).
 
     For the displacement problem :attr:`displacement` is the unknown itself;
     for the three-field problem the collapsed displacement and pressure of
-    ``update_fields()``. A time step (``problem.base`` and ``problem.v``) adds
-    the velocity, collapsed the same way.
+    ``update_fields()``. A time step (``problem.base`` and ``problem.v``: an
+    :class:`~hyperfem.dynamics.IncrementalProblem` or an
+    :class:`~hyperfem.dynamics.ExplicitDynamics`) adds the velocity, collapsed
+    the same way.
 
     Args:
-        problem: A problem, or an incremental problem wrapping one.
+        problem: A problem, or a time step wrapping one.
 
     Attributes:
         base: The problem of the body (``problem.base`` for a time step).
@@ -126,13 +135,25 @@ class Simulation:
 
     Args:
         problem: A :class:`~hyperfem.problem.protocol.SolidProblem`, or an
-            :class:`~hyperfem.dynamics.IncrementalProblem` for a dynamic run.
-        solver: The :class:`~hyperfem.solver.NewtonSolver` built on ``problem``.
+            :class:`~hyperfem.dynamics.IncrementalProblem` for a dynamic run,
+            or an :class:`~hyperfem.dynamics.ExplicitDynamics` (with
+            ``stage=ExplicitStage`` and no solver).
+        solver: The :class:`~hyperfem.solver.NewtonSolver` built on ``problem``;
+            ``None`` for a problem that steps itself (the explicit scheme: it
+            has ``min_J()`` and ``linear_solver_name`` in its place).
         stepper: The :class:`~hyperfem.solver.stepping.StepPolicy`, or a preset
             (:class:`~hyperfem.solver.LoadStepping` to 1,
             :class:`~hyperfem.dynamics.TimeStepping`) turned into one.
         outputs: Observers (:mod:`hyperfem.simulation.outputs`,
             :mod:`hyperfem.simulation.measures`), called in this order.
+        stage: The :class:`~hyperfem.solver.stepping.Stage` class that takes
+            the steps, built as ``stage(problem, solver)`` when the run starts
+            (after a restart's state is loaded); its ``kind`` is the run's.
+            Default: :class:`~hyperfem.solver.stepping.DynamicStage` for a time
+            step, else :class:`~hyperfem.solver.stepping.QuasiStaticStage`.
+            :class:`~hyperfem.dynamics.SemiImplicitStage` takes one
+            linearization per step, :class:`~hyperfem.dynamics.ExplicitStage`
+            the explicit scheme's steps.
         name: Name of the run (summary, messages).
         info: Extra summary entries (case, parameters).
         solve_initial: Solve for equilibrium at the start time before the
@@ -144,6 +165,9 @@ class Simulation:
             lists, dicts): anything else is hashed by ``str()``, which may
             name memory addresses that differ between processes.
 
+    Raises:
+        ParameterError: ``solve_initial`` without a solver.
+
     Attributes:
         rows: One dict per recorded state (row 0: the initial state), those
             before a restart included.
@@ -152,6 +176,7 @@ class Simulation:
         files: Files the outputs write, by role (``"summary"``, ``"csv"``, VTX names).
         completed: Whether the run reached the end.
         error: Why it stopped, or ``None``.
+        stage: The stage of the current (or last) :meth:`run`, ``None`` before.
         stepper: The step-size control's state after the last accepted step
             (:class:`~hyperfem.simulation.checkpoint.StepperState`).
         restarted_from: The checkpoint this run continued from, or ``None``.
@@ -168,17 +193,23 @@ class Simulation:
     def __init__(
         self,
         problem,
-        solver: NewtonSolver,
+        solver: NewtonSolver | None,
         stepper,
         outputs: Sequence = (),
         *,
+        stage: type | None = None,
         name: str = "run",
         info: dict | None = None,
         solve_initial: bool = False,
         case=None,
     ):
+        if solver is None and solve_initial:
+            raise ParameterError(f"{name}: solve_initial needs a solver (the problem steps itself)")
         self.problem = problem
         self.solver = solver
+        if stage is None:
+            stage = DynamicStage if _is_time_step(problem) else QuasiStaticStage
+        self._stage_type = stage
         self.policy = stepper if isinstance(stepper, StepPolicy) else stepper.policy()
         self.outputs = list(outputs)
         self.name = name
@@ -186,7 +217,7 @@ class Simulation:
         self.solve_initial = solve_initial
         self.case = self.info if case is None else case
         self.comm = problem.domain.comm
-        self.fields = Fields(problem)
+        self.fields = StateFunctions(problem)
         self.stage = None
         self.rows: list[dict] = []
         self.steps: list[StepRecord] = []
@@ -209,8 +240,8 @@ class Simulation:
     # -- state -----------------------------------------------------------------------
     @property
     def kind(self) -> str:
-        """``"dynamic"`` for a time step, else ``"quasi-static"``."""
-        return "dynamic" if _is_time_step(self.problem) else "quasi-static"
+        """The stage's kind: ``"dynamic"`` for a time step, else ``"quasi-static"``."""
+        return self._stage_type.kind
 
     @property
     def time(self) -> float:
@@ -268,7 +299,7 @@ class Simulation:
             self._wall_before = float(meta.get("wall_time", 0.0))
             policy = self.stepper.resumed(self.policy)
             self.fields.refresh()
-        self.stage = (DynamicStage if self.kind == "dynamic" else QuasiStaticStage)(self.problem, self.solver)
+        self.stage = self._stage_type(self.problem, self.solver)
         domain = self.fields.base.domain
         if self.mesh_quality is None and domain.mesh.topology.cell_type.name in ("triangle", "tetrahedron"):
             # seed 003 §5.6: look at the mesh before solving on it (a warning, not an error, when poor);
@@ -406,7 +437,7 @@ class Simulation:
             "solves": record.solves if record is not None else int(solve is not None),
             "rejected": 0 if record is None else record.rejected,
             "error_estimate": float("nan") if record is None else record.error,
-            "min_J": solve.min_J if solve is not None else self.solver.min_J(),
+            "min_J": solve.min_J if solve is not None else self._solver_or_problem().min_J(),
             "residual": (solve.residual_norms[-1] if solve is not None and solve.residual_norms else float("nan")),
             "reason": solve.reason_name if solve is not None else "",
             "krylov_iterations": sum(r.linear_iterations for r in record.solve_records) if record is not None
@@ -421,6 +452,10 @@ class Simulation:
         for output in self.outputs:
             output.write(self, record)
         self._check_interrupt()
+
+    def _solver_or_problem(self):
+        """What moves the state: the Newton solver, or the problem that steps itself (``solver=None``)."""
+        return self.problem if self.solver is None else self.solver
 
     # -- summary ---------------------------------------------------------------------
     def summary(self, rows: bool = True) -> dict:
@@ -444,9 +479,9 @@ class Simulation:
             "ranks": self.comm.size,
             "mesh": base.domain.source,
             "degree": base.degree,
-            "petsc_options": {k: str(v) for k, v in self.solver.options.items()},
-            "energy_line_search": self.solver.energy_line_search,
-            "linear_solver": self.solver.linear_solver_name,
+            "petsc_options": {} if self.solver is None else {k: str(v) for k, v in self.solver.options.items()},
+            "energy_line_search": self.solver is not None and self.solver.energy_line_search,
+            "linear_solver": self._solver_or_problem().linear_solver_name,
             "steps": self.step,
             "newton_iterations": its,
             "total_newton_iterations": int(sum(its)),
