@@ -13,7 +13,9 @@ Serial and under ``mpiexec -n 2``; every run is small (well under a second of
 stepping each, plus form compilation).
 """
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -296,3 +298,98 @@ def test_fvm_node_force_equals_fem_force(comm):
     scale = comm.allreduce(np.abs(residual.array[:n]).max(initial=0.0), op=MPI.MAX)
     assert scale > 1e3
     assert diff < 1e-10 * scale
+
+
+# -- a run of the explicit scheme is a Simulation -------------------------------------------
+def explicit_strip(comm):
+    """A 4 x 1 strip of 8 x 2 x 2 P1 triangles, clamped at x = 0, swinging (lumped mass, damped)."""
+    mesh = dmesh.create_rectangle(comm, [[0.0, 0.0], [4.0, 1.0]], [8, 2], dmesh.CellType.triangle)
+    domain = hf.Domain.from_locators(mesh, {"left": lambda x: np.isclose(x[0], 0.0)})
+    base = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, BEAM_PARAMS), bcs=[hf.Clamp("left")])
+    density = dyn.MassDensity(1000.0, lumped=True)
+    explicit = dyn.ExplicitDynamics(base, density, dyn.viscous_damping(0.1), lame=BEAM_PARAMS)
+    explicit.v.interpolate(lambda x: np.vstack([np.zeros(x.shape[1]), 4.0 * (x[0] / 4.0) ** 2]))
+    return explicit
+
+
+class _Stop(Exception):
+    """Stands for a kill after a given step."""
+
+
+def test_explicit_run_has_the_outputs_and_restart_of_a_simulation(comm, tmp_path):
+    """integrate_explicit is a Simulation with ExplicitStage: CSV, JSON, VTX, probes and a
+    checkpoint from which the run continues to the state of the uninterrupted one."""
+    from hyperfem.io import vtx_steps
+    from hyperfem.simulation import VTX, Checkpoint, CSVLog, JSONSummary, Output, Probe, Recorder, Simulation
+
+    folder = Path(comm.bcast(str(tmp_path), root=0))
+
+    class StopAfter(Output):
+        def write(self, sim, step):
+            if step is not None and step.step >= 7:
+                raise _Stop
+
+    def run(where, extra=(), restart=None):
+        explicit = explicit_strip(comm)
+        diagnostics = dyn.Diagnostics(explicit, [(4.0, 0.5)])
+        stepping = dyn.TimeStepping(dt=0.004, t_end=0.048)
+        outputs = [
+            Recorder(diagnostics),
+            Probe([(4.0, 0.5)]),
+            CSVLog(where / "strip.csv"),
+            JSONSummary(where / "strip.json"),
+            VTX(where / "strip.bp"),
+            Checkpoint(where / "ckpt", every=5),
+            *extra,
+        ]
+        sim = Simulation(explicit, None, stepping, outputs, stage=dyn.ExplicitStage, name="strip")
+        return sim, sim.run(restart=restart)
+
+    full, summary = run(folder / "full")
+    assert summary["completed"] and summary["stage"] == "dynamic" and summary["steps"] == 12
+    assert summary["linear_solver"] == "none (lumped mass)" and summary["petsc_options"] == {}
+    assert all(row["newton_iterations"] == 0 and row["reason"] == "EXPLICIT" for row in summary["rows"][1:])
+    assert summary["probe_displacement"][0][1] > 0.01  # the free end swings up
+    comm.Barrier()
+    lines = (folder / "full" / "strip.csv").read_text().splitlines()
+    assert len(lines) == 14 and "kinetic_energy" in lines[0] and "p0_y" in lines[0]
+    written = json.loads((folder / "full" / "strip.json").read_text())
+    assert written["completed"] and len(written["rows"]) == 13 and written["final_time"] == pytest.approx(0.048)
+    assert vtx_steps(folder / "full" / "strip.bp") == 13  # the initial state and every step
+
+    with pytest.raises(_Stop):
+        run(folder / "cut", extra=[StopAfter()])
+    resumed, again = run(folder / "cut", restart=folder / "cut" / "ckpt")
+    assert again["restarted_from"].endswith("step-000005") and again["steps"] == 12
+    for name in ("u", "v", "a"):
+        a, b = getattr(resumed.problem, name).x.array, getattr(full.problem, name).x.array
+        assert max_difference(comm, a, b) <= 1e-12 * max_difference(comm, b, 0 * b)
+    assert [row["time"] for row in again["rows"]] == pytest.approx([row["time"] for row in summary["rows"]])
+    assert again["rows"][-1]["kinetic_energy"] == pytest.approx(summary["rows"][-1]["kinetic_energy"], rel=1e-12)
+
+
+def max_difference(comm, a, b) -> float:
+    return comm.allreduce(float(np.abs(a - b).max(initial=0.0)), op=MPI.MAX)
+
+
+def test_integrate_explicit_calls_on_step_after_its_outputs(comm):
+    from hyperfem.simulation import Quantity
+
+    explicit = explicit_strip(comm)
+    order = []
+    outputs = [Quantity("seen", lambda: order.append("output") or len(order))]
+    history = dyn.integrate_explicit(
+        explicit, dyn.TimeStepping(dt=0.004, t_end=0.012), on_step=lambda r: order.append(r.step), outputs=outputs
+    )
+    assert [r.step for r in history] == [1, 2, 3]
+    assert order == ["output", "output", 1, "output", 2, "output", 3]
+
+
+def test_explicit_stage_takes_no_solver(comm):
+    from hyperfem.simulation import Simulation
+
+    explicit = explicit_strip(comm)
+    with pytest.raises(hf.ParameterError, match="takes no Newton solver"):
+        dyn.ExplicitStage(explicit, hf.NewtonSolver(explicit.base))
+    with pytest.raises(hf.ParameterError, match="solve_initial needs a solver"):
+        Simulation(explicit, None, dyn.TimeStepping(dt=0.004, t_end=0.008), stage=dyn.ExplicitStage, solve_initial=True)

@@ -13,7 +13,9 @@
 Serial and under ``mpiexec -n 2``.
 """
 
+import csv
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -194,3 +196,33 @@ def test_seed000_bar_semi_implicit(comm):
     late = t > 1.0
     forced = np.sin(t[late]) / math.cos(1.0 / C_SEED)
     assert np.abs(tip[late] - forced).max() < 5e-3
+
+
+# -- a run is a Simulation -------------------------------------------------------------------
+def test_semi_implicit_run_writes_the_outputs_of_a_simulation(comm, tmp_path):
+    """integrate_semi_implicit with outputs: the diagnostics of every second step in the CSV,
+    the on_step callback at every step, the same steps as without outputs."""
+    from hyperfem.simulation import CSVLog, Recorder
+
+    folder = Path(comm.bcast(str(tmp_path), root=0))
+    dt, t_end = PERIOD_1 / 20, PERIOD_1 / 2
+    plain, plain_history = semi_implicit_run(bar(comm), dyn.BackwardEuler(), dt, t_end, 0.25 * C_SEED)
+    problem = dyn.IncrementalProblem(bar(comm), dyn.BackwardEuler(), dyn.MassDensity(1.0, lumped=True))
+    first_mode(problem, 0.25 * C_SEED)
+    problem.initial_acceleration()
+    diagnostics = dyn.Diagnostics(problem, [(1.0,)])
+    outputs = [Recorder(diagnostics, every=2), CSVLog(folder / "bar.csv", every=2)]
+    seen = []
+    history = dyn.integrate_semi_implicit(
+        problem, dyn.semi_implicit_solver(problem), dyn.TimeStepping(dt=dt, t_end=t_end), seen.append, outputs
+    )
+    assert [r.step for r in seen] == [r.step for r in history] == list(range(1, 11))
+    assert max_error(comm, owned(problem), owned(plain)) == 0.0
+    assert [r.time for r in history] == [r.time for r in plain_history]
+    assert [row["step"] for row in diagnostics.rows] == [0, 2, 4, 6, 8, 10]
+    comm.Barrier()
+    with (folder / "bar.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(r["step"]) for r in rows] == [0, 2, 4, 6, 8, 10]
+    assert all(float(r["kinetic_energy"]) > 0 and r["reason"] for r in rows[1:])
+    assert float(rows[-1]["p0_x"]) == pytest.approx(diagnostics.rows[-1]["p0_x"], rel=1e-15)

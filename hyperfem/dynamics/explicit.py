@@ -48,17 +48,21 @@ the FVM node force equals the FEM :math:`f_\text{int}`).
   parameters and the density given here; a larger step raises
   :class:`~hyperfem.errors.ParameterError`.
 
-:func:`integrate_explicit` drives the scheme with the same stepping loop
-(:func:`~hyperfem.solver.stepping.run_steps`), policies, step records and
+:func:`integrate_explicit` runs the scheme as a
+:class:`~hyperfem.simulation.Simulation` with :class:`ExplicitStage`, i.e. with
+the same stepping loop (:func:`~hyperfem.solver.stepping.run_steps`), policies,
+step records, outputs (probes, CSV, JSON, VTX, checkpoints) and
 :class:`~hyperfem.dynamics.Diagnostics` as the implicit integrators: a step
 whose state is not finite, or that inverts an element, is rejected and
-retried with half the step.
+retried with half the step. Directly::
+
+    Simulation(dynamics, None, stepping, outputs, stage=ExplicitStage).run()
 """
 
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import ufl
@@ -78,7 +82,9 @@ from hyperfem.materials.parameters import LameParameters
 from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.linear import LinearSolver, describe
 from hyperfem.solver.newton import SolveRecord
-from hyperfem.solver.stepping import StepRecord, TimeStepping, run_steps
+from hyperfem.simulation.outputs import OnStep
+from hyperfem.simulation.runner import Simulation
+from hyperfem.solver.stepping import StepRecord, TimeStepping
 
 __all__ = ["MASS_SOLVER", "ExplicitDynamics", "ExplicitStage", "integrate_explicit"]
 
@@ -256,6 +262,10 @@ class ExplicitDynamics:
     def quadrature_points(self) -> np.ndarray:
         """Quadrature points of the base problem."""
         return self.base.quadrature_points()
+
+    def min_J(self) -> float:
+        """Smallest :math:`J` over all quadrature points at the current state (collective)."""
+        return self._min_J()
 
     # -- state -------------------------------------------------------------------
     def save(self) -> DynamicState:
@@ -450,15 +460,27 @@ class ExplicitStage:
     """The :class:`~hyperfem.solver.stepping.Stage` of an :class:`ExplicitDynamics`.
 
     What :func:`~hyperfem.solver.stepping.run_steps` steps: save, one explicit step, commit or restore.
+    Built by :class:`~hyperfem.simulation.Simulation` as ``ExplicitStage(dynamics, None)``.
 
     Args:
-        dynamics: The explicit scheme; its state is the start.
+        dynamics: The explicit scheme; its state is the start (its initial
+            acceleration is computed here unless it has one).
+        solver: ``None``: the scheme takes no Newton solver.
+
+    Raises:
+        ParameterError: A solver is given.
     """
 
     kind = "dynamic"
 
-    def __init__(self, dynamics: ExplicitDynamics):
+    def __init__(self, dynamics: ExplicitDynamics, solver: None = None):
+        if solver is not None:
+            raise ParameterError(
+                f"ExplicitStage: the explicit scheme takes no Newton solver, got {type(solver).__name__} "
+                "(Simulation(dynamics, None, stepping, outputs, stage=ExplicitStage))"
+            )
         self.dynamics = dynamics
+        dynamics._ensure_acceleration()
         self._time = dynamics.t_n
 
     @property
@@ -496,14 +518,18 @@ def integrate_explicit(
     dynamics: ExplicitDynamics,
     stepping: TimeStepping,
     on_step: Callable[[StepRecord], None] | None = None,
+    outputs: Sequence = (),
 ) -> list[StepRecord]:
-    """Advance ``dynamics`` to ``stepping.t_end`` with the stepping loop of the implicit schemes.
+    """Advance ``dynamics`` to ``stepping.t_end`` with the stepping loop and outputs of the implicit schemes.
+
+    ``Simulation(dynamics, None, stepping, [*outputs, OnStep(on_step)], stage=ExplicitStage).run()``.
 
     Args:
         dynamics: The explicit scheme; its state is the start.
         stepping: Step control (fixed steps; with ``adaptive`` the largest
             step ``dt_max`` must respect the stable step too).
-        on_step: Called after every accepted step.
+        on_step: Called after every accepted step (after ``outputs``).
+        outputs: Observers of every accepted step (:mod:`hyperfem.simulation.outputs`).
 
     Returns:
         The accepted steps.
@@ -514,5 +540,7 @@ def integrate_explicit(
     """
     if dynamics.check_step and dynamics.stable_step is not None:
         dynamics.stable_step.check(stepping.max_step, "integrate_explicit")
-    dynamics._ensure_acceleration()
-    return run_steps(ExplicitStage(dynamics), stepping.policy(), on_step)
+    observers = [*outputs, *([OnStep(on_step)] if on_step is not None else [])]
+    sim = Simulation(dynamics, None, stepping, observers, stage=ExplicitStage, name="integrate_explicit")
+    sim.run()
+    return sim.steps

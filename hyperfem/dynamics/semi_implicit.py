@@ -30,6 +30,10 @@ would be a second linear solve). :class:`SemiImplicitStage` accepts the
 iteration's ``DIVERGED_MAX_IT`` by design; a failed linear solve, a
 non-finite residual or an inverted element still fail the step (and
 :func:`~hyperfem.solver.stepping.run_steps` cuts it back).
+:func:`integrate_semi_implicit` runs it as a
+:class:`~hyperfem.simulation.Simulation` (with its outputs) with this stage::
+
+    Simulation(problem, semi_implicit_solver(problem), stepping, outputs, stage=SemiImplicitStage).run()
 
 Seed 003 uses "SI-FEM" for the scheme with the elastic forces explicit and a
 consistent-mass velocity solve (its §5.5: "the coefficient matrix of the
@@ -41,7 +45,7 @@ velocity update is the mass matrix"); that scheme is
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from mpi4py import MPI  # noqa: F401  (before petsc4py)
@@ -50,7 +54,9 @@ from petsc4py import PETSc
 from hyperfem.dynamics.incremental import IncrementalProblem
 from hyperfem.errors import ParameterError
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
-from hyperfem.solver.stepping import DynamicStage, StepRecord, TimeStepping, run_steps
+from hyperfem.simulation.outputs import OnStep
+from hyperfem.simulation.runner import Simulation
+from hyperfem.solver.stepping import DynamicStage, StepRecord, TimeStepping
 
 __all__ = [
     "SEMI_IMPLICIT_OPTIONS",
@@ -159,15 +165,20 @@ def integrate_semi_implicit(
     solver: NewtonSolver,
     stepping: TimeStepping,
     on_step: Callable[[StepRecord], None] | None = None,
+    outputs: Sequence = (),
 ) -> list[StepRecord]:
     """Advance ``problem`` to ``stepping.t_end`` with one linearization per step.
+
+    ``Simulation(problem, solver, stepping, [*outputs, OnStep(on_step)], stage=SemiImplicitStage).run()``.
 
     Args:
         problem: The incremental problem (call its ``initial_acceleration`` first, as for
             :func:`~hyperfem.dynamics.integrate`).
         solver: From :func:`semi_implicit_solver`.
         stepping: Step control.
-        on_step: Called after every accepted step; :func:`linearization_residual` of its record is the residual left.
+        on_step: Called after every accepted step (after ``outputs``); :func:`linearization_residual`
+            of its record is the residual left.
+        outputs: Observers of every accepted step (:mod:`hyperfem.simulation.outputs`).
 
     Returns:
         The accepted steps.
@@ -176,4 +187,7 @@ def integrate_semi_implicit(
         ParameterError: If ``solver`` takes more than one iteration.
         ConvergenceError: When failed linear solves or inverted elements cut the step below ``dt_min``.
     """
-    return run_steps(SemiImplicitStage(problem, solver), stepping.policy(), on_step)
+    observers = [*outputs, *([OnStep(on_step)] if on_step is not None else [])]
+    sim = Simulation(problem, solver, stepping, observers, stage=SemiImplicitStage, name="integrate_semi_implicit")
+    sim.run()
+    return sim.steps
