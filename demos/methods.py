@@ -46,9 +46,7 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import csv  # noqa: E402
 import importlib.util  # noqa: E402
-import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -61,9 +59,10 @@ from hyperfem import dynamics as dyn  # noqa: E402
 from hyperfem.cases.cantilever import bend_load, twist_load  # noqa: E402
 from hyperfem.cases.cantilever_dynamics import TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
-from hyperfem.io import ensure_output_dir  # noqa: E402
+from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.mesh.beam import LENGTH  # noqa: E402
+from hyperfem.simulation import CSVLog, Output, Recorder, Simulation  # noqa: E402
 
 END_ROTATION = {"bc-bend": ((0.0, 1.0, 0.0), math.pi / 2), "bc-twist": ((1.0, 0.0, 0.0), 2 * math.pi)}
 """Axis and final angle of the free end's prescribed rotation (as in ``cantilever_problem``)."""
@@ -134,8 +133,9 @@ def body(method: str, case: str, domain, spec: CantileverDynamics):
 
 
 def build(method: str, case: str, domain, spec: CantileverDynamics | None = None, *, check_step: bool = True):
-    """``(stepper, integrate, must_hit)`` of one method: the object the diagnostics observe,
-    ``integrate(stepping, on_step) -> history`` and the case's must-hit times."""
+    """``(stepper, solver, stage, must_hit)`` of one method: the object that holds the state (the
+    ``Simulation``'s problem, which the diagnostics observe), its Newton solver (``None`` for the
+    explicit schemes), the ``Simulation``'s stage class (``None``: its default) and the case's must-hit times."""
     if method not in METHODS:
         raise hf.ParameterError(f"methods demo: unknown method {method!r} (choose from {', '.join(METHODS)})")
     if method == "COR" and not corotational_available():
@@ -148,26 +148,50 @@ def build(method: str, case: str, domain, spec: CantileverDynamics | None = None
     if method in EXPLICIT:
         explicit = dyn.ExplicitDynamics(base, density, damping, lame=spec.lame, check_step=check_step)
         explicit.initial_acceleration()
-        return explicit, lambda stepping, on_step: dyn.integrate_explicit(explicit, stepping, on_step), must_hit
+        return explicit, None, dyn.ExplicitStage, must_hit
     problem = dyn.IncrementalProblem(base, dyn.BackwardEuler(), density, damping)
     problem.initial_acceleration()
     if method in IMPLICIT:
-        solver = hf.NewtonSolver(problem, NEWTON_OPTIONS)
-        return problem, lambda stepping, on_step: dyn.integrate(problem, solver, stepping, on_step), must_hit
-    solver = dyn.semi_implicit_solver(problem)
-    return problem, lambda stepping, on_step: dyn.integrate_semi_implicit(problem, solver, stepping, on_step), must_hit
+        return problem, hf.NewtonSolver(problem, NEWTON_OPTIONS), None, must_hit  # None: the default DynamicStage
+    return problem, dyn.semi_implicit_solver(problem), dyn.SemiImplicitStage, must_hit
 
 
 # %% [markdown]
 # ## One run
-# Fixed steps (no step doubling, no cutback: a failed step ends the run), the
-# seed's diagnostics every `output_every` seconds: the test point
+# Every method is a `Simulation` of its state, solver and stage with fixed
+# steps (no step doubling, no cutback: a failed step ends the run). Its outputs
+# record the seed's diagnostics every `output_every` seconds: the test point
 # $(4.5, 1.5, 1.5)$, the kinetic energy and the volume gain
-# $\int\det F\,dX/|\Omega| - 1$. The wall time per step counts the step only
-# (not the diagnostics).
+# $\int\det F\,dX/|\Omega| - 1$ (with `csv_file`, also into a CSV file), and stop
+# a run whose test point leaves the physical range. The wall time per step
+# counts the step only (not the outputs).
 
 
 # %%
+class BlowUpWatch(Output):
+    """Raise :class:`BlowUp` when a recorded test point is not finite or has moved more than a beam length."""
+
+    def write(self, sim, step) -> None:
+        row = sim.rows[-1]
+        if "p0_x" not in row:  # a step between the recorded ones
+            return
+        moved = float(np.linalg.norm(np.subtract([row["p0_x"], row["p0_y"], row["p0_z"]], TEST_POINT)))
+        if not (math.isfinite(moved) and moved < LENGTH):
+            raise BlowUp(f"test point moved {moved:.3g} m at t = {row['time']:.4g} s")
+
+
+def summary_row(row: dict) -> dict:
+    """The row of a run's summary from a diagnostics row."""
+    return {
+        "time": row["time"],
+        "x": [row["p0_x"], row["p0_y"], row["p0_z"]],
+        "kinetic_energy": row["kinetic_energy"],
+        "elastic_energy": row["elastic_energy"],
+        "volume_gain": row["volume_ratio"] - 1.0,
+        "min_J": row["min_J"],
+    }
+
+
 def run_method(
     method: str,
     case: str,
@@ -178,6 +202,7 @@ def run_method(
     spec: CantileverDynamics | None = None,
     check_step: bool = True,
     output_every: float = 0.01,
+    csv_file: Path | None = None,
 ) -> dict:
     r"""Run one method on one case; returns the summary and the recorded rows.
 
@@ -186,51 +211,30 @@ def run_method(
     ``residual_left_max`` (SI methods: the largest relative residual left by a step),
     ``dt_crit`` and ``dt_spectral`` (explicit: the estimate and the linearised limit
     :math:`2/\omega_\max` at the start), ``rows`` (time, test point, kinetic and elastic
-    energy, volume gain, min J).
+    energy, volume gain, min J). With ``csv_file`` the recorded rows (all diagnostics) go to that file.
     """
-    stepper, integrate, must_hit = build(method, case, domain, spec, check_step=check_step)
+    stepper, solver, stage, must_hit = build(method, case, domain, spec, check_step=check_step)
     sharp = stepper.spectral_time_step() if method in EXPLICIT else None
     diagnostics = dyn.Diagnostics(stepper, [TEST_POINT])
     every = max(1, round(output_every / dt))
-    rows: list[dict] = []
-    history: list = []
-    residual_left: list[float] = []
-
-    def keep(row: dict) -> None:
-        point = [row["p0_x"], row["p0_y"], row["p0_z"]]
-        rows.append(
-            {
-                "time": row["time"],
-                "x": point,
-                "kinetic_energy": row["kinetic_energy"],
-                "elastic_energy": row["elastic_energy"],
-                "volume_gain": row["volume_ratio"] - 1.0,
-                "min_J": row["min_J"],
-            }
-        )
-        moved = float(np.linalg.norm(np.subtract(point, TEST_POINT)))
-        if not (math.isfinite(moved) and moved < LENGTH):
-            raise BlowUp(f"test point moved {moved:.3g} m at t = {row['time']:.4g} s")
-
-    def on_step(record) -> None:
-        history.append(record)
-        if method in ("SI-FEM", "L-FEM", "COR"):
-            residual_left.append(dyn.linearization_residual(record)[1])
-        if record.step % every == 0:
-            keep(diagnostics.record(record))
-
-    keep(diagnostics.record())
+    outputs = [Recorder(diagnostics, every=every), BlowUpWatch()]
+    if csv_file is not None:
+        outputs.insert(1, CSVLog(csv_file, every=every))
     must_hit = [t for t in must_hit if t < t_end]
     stepping = dyn.TimeStepping(dt=dt, t_end=t_end, dt_min=dt, must_hit=must_hit, reject_inversion=True)
+    sim = Simulation(stepper, solver, stepping, outputs, stage=stage, name=f"{method} {case}")
     failure = ""
     start = time.perf_counter()
     try:
-        integrate(stepping, on_step)
+        sim.run()
     except BlowUp as exc:
         failure = f"blow-up: {exc}"
     except hf.ConvergenceError as exc:
         failure = f"step failed: {exc}"
     wall = time.perf_counter() - start
+    history = sim.steps
+    rows = [summary_row(row) for row in diagnostics.rows]
+    residual_left = [dyn.linearization_residual(r)[1] for r in history] if method in ("SI-FEM", "L-FEM", "COR") else []
     comm = domain.comm
     step_wall = comm.allreduce(sum(r.wall_time for r in history), op=MPI.MAX)
     median = comm.allreduce(float(np.median([r.wall_time for r in history])) if history else math.nan, op=MPI.MAX)
@@ -288,7 +292,8 @@ def parse(argv=None):
 
 # %% [markdown]
 # ## Running the comparison
-# Every method's rows go to `<output>/<case>_<method>.csv`, the summaries to
+# Every method's recorded rows (all the diagnostics columns, every `output_every`
+# seconds) go to `<output>/<case>_<method>.csv`, the summaries to
 # `<output>/<case>.json`; rank 0 prints one line per method.
 
 
@@ -304,31 +309,23 @@ def main(argv=None) -> dict:
     results = {}
     for method in methods:
         dt = args.dt_implicit if method in IMPLICIT else args.dt
-        summary = run_method(method, args.case, domain, dt=dt, t_end=args.t_end)
+        csv_file = out / f"{args.case}_{method}.csv"
+        summary = run_method(method, args.case, domain, dt=dt, t_end=args.t_end, csv_file=csv_file)
         results[method] = {**{k: v for k, v in summary.items() if k != "rows"}, **extremes(summary)}
-        if comm.rank == 0:
-            with (out / f"{args.case}_{method}.csv").open("w", newline="") as fh:
-                writer = csv.writer(fh)
-                writer.writerow(["time", "x", "y", "z", "kinetic_energy", "elastic_energy", "volume_gain", "min_J"])
-                for r in summary["rows"]:
-                    writer.writerow(
-                        [r["time"], *r["x"], r["kinetic_energy"], r["elastic_energy"], r["volume_gain"], r["min_J"]]
-                    )
-            if not args.quiet:
-                r = results[method]
-                d = r["final_displacement"]
-                print(
-                    f"{method:7s} dt = {dt:<7.3g} steps {r['steps']:5d}  {1e3 * r['wall_per_step']:8.2f} ms/step "
-                    f"{r['wall_per_simulated_second']:8.2f} s per simulated s  u_p(t_end) = ({d[0]:.3f}, {d[1]:.3f}, "
-                    f"{d[2]:.3f})  K_max = {r['max_kinetic_energy']:.4g} J  volume gain [{r['volume_gain_min']:.2e}, "
-                    f"{r['volume_gain_max']:.2e}]" + ("" if r["completed"] else f"  FAILED: {r['failure']}"),
-                    flush=True,
-                )
+        if comm.rank == 0 and not args.quiet:
+            r = results[method]
+            d = r["final_displacement"]
+            print(
+                f"{method:7s} dt = {dt:<7.3g} steps {r['steps']:5d}  {1e3 * r['wall_per_step']:8.2f} ms/step "
+                f"{r['wall_per_simulated_second']:8.2f} s per simulated s  u_p(t_end) = ({d[0]:.3f}, {d[1]:.3f}, "
+                f"{d[2]:.3f})  K_max = {r['max_kinetic_energy']:.4g} J  volume gain [{r['volume_gain_min']:.2e}, "
+                f"{r['volume_gain_max']:.2e}]" + ("" if r["completed"] else f"  FAILED: {r['failure']}"),
+                flush=True,
+            )
     summary = {"case": args.case, "mesh": str(args.mesh), "ranks": comm.size, "methods": results}
-    if comm.rank == 0:
-        (out / f"{args.case}.json").write_text(json.dumps(summary, indent=2, default=str))
-        if not args.quiet:
-            print(f"output: {', '.join(str(p) for p in files)}", flush=True)
+    write_json(out / f"{args.case}.json", summary, comm)
+    if comm.rank == 0 and not args.quiet:
+        print(f"output: {', '.join(str(p) for p in files)}", flush=True)
     return summary
 
 

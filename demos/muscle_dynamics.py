@@ -70,9 +70,10 @@ from hyperfem.loading import Activation  # noqa: E402
 from hyperfem.cases.muscle import MUSCLE_DENSITY, muscle_problem  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
-from hyperfem.io import VTXWriter, ensure_output_dir, write_json  # noqa: E402
+from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.mesh.fusiform import FusiformGeometry, fusiform_mesh  # noqa: E402
+from hyperfem.simulation import VTX, CSVLog, Quantity, Recorder, Simulation  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 MESH = ROOT / "meshes" / "fusiform_h8mm.msh"  # committed: 268 cells
@@ -135,35 +136,33 @@ class InsertionMotion:
 # `IncrementalProblem` adds the inertia of the displacement block to the
 # three-field problem; `initial_acceleration` solves $M a_0 = -R(u_0)$ on the
 # displacement space ($a_0 \approx 0$ at equilibrium). Steps land on the end
-# of the ramp. The quasi-static run repeats the loop with `QuasiStatic()`.
+# of the ramp. A `Simulation` takes the steps; its outputs observe every
+# accepted state: the diagnostics (energies, volume, min J), the activation
+# and the insertion's motion become the columns of its rows, which the
+# dynamic run also writes as CSV, with the fields as a VTX time series. The
+# quasi-static run repeats it with `QuasiStatic()` and no files.
 
 
 # %%
-def integrate(domain, a0, args, scheme, writer_path=None):
+def integrate(domain, a0, args, scheme, out=None, vtx=True):
+    """One run; with ``out`` it writes ``diagnostics.csv`` (and ``displacement.bp`` with ``vtx``) there."""
     base, activation = build(domain, a0, args)
     problem = dyn.IncrementalProblem(base, scheme, dyn.MassDensity(args.rho) if scheme.dynamic else None)
     problem.initial_acceleration()
-    solver = hf.NewtonSolver(problem)
-    insertion = InsertionMotion(problem, domain)
     diagnostics = dyn.Diagnostics(problem)
-    rows = []
-    vtx = None
-    if writer_path is not None:
-        vtx = VTXWriter(domain.comm, writer_path, [problem.displacement_block.function(problem.u)])
-
-    def record(step=None):
-        row = diagnostics.record(step)
-        rows.append({**row, "activation": activation.value, "insertion_uz": insertion()})
-        if vtx is not None:
-            problem.displacement_block.function(problem.u)  # refresh the collapsed copy
-            vtx.write(problem.t_n)
-
-    record()
+    outputs = [
+        Recorder(diagnostics),
+        Quantity("activation", lambda: activation.value),
+        Quantity("insertion_uz", InsertionMotion(problem, domain)),
+    ]
+    if out is not None:
+        outputs.append(CSVLog(out / "diagnostics.csv"))
+        if vtx:
+            outputs.append(VTX(out / "displacement.bp"))  # displacement, pressure, velocity
     stepping = dyn.TimeStepping(dt=args.dt, t_end=args.t_end, must_hit=[args.ramp], dt_min=args.dt / 64)
-    dyn.integrate(problem, solver, stepping, on_step=record)
-    if vtx is not None:
-        vtx.close()
-    return rows, diagnostics, problem
+    sim = Simulation(problem, hf.NewtonSolver(problem), stepping, outputs, name=f"muscle ({scheme.name})")
+    sim.run()
+    return sim.rows, diagnostics, problem
 
 
 # %% [markdown]
@@ -199,9 +198,7 @@ def main(argv=None) -> dict:
     )
     a0 = laplace_fibres(domain, "origin", "insertion")
     scheme = SCHEMES[args.scheme]()
-    dynamic, diagnostics, problem = integrate(
-        domain, a0, args, scheme, None if args.no_vtx else out / "displacement.bp"
-    )
+    dynamic, diagnostics, problem = integrate(domain, a0, args, scheme, out, vtx=not args.no_vtx)
     static, _, _ = integrate(domain, a0, args, dyn.QuasiStatic())
     t = np.array([r["time"] for r in dynamic])
     s = dynamic[0]["insertion_uz"] - np.array([r["insertion_uz"] for r in dynamic])
@@ -234,7 +231,6 @@ def main(argv=None) -> dict:
         "min_J": diagnostics.summary()["min_J"],
         "wall_time": time.perf_counter() - start,
     }
-    diagnostics.write_csv(out / "diagnostics.csv")
     write_json(out / "muscle_dynamics.json", summary, comm)
     if comm.rank == 0 and not args.quiet:
         for k in range(0, len(t), max(1, len(t) // 20)):

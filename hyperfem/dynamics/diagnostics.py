@@ -1,4 +1,4 @@
-r"""Per-step diagnostics of a time-dependent run, written to CSV and JSON.
+r"""Per-step diagnostics of a time-dependent run: measured here, written by the run's outputs.
 
 For every accepted step :class:`Diagnostics` records
 
@@ -16,15 +16,23 @@ For every accepted step :class:`Diagnostics` records
 
 Everything goes through the problem contract
 (:class:`~hyperfem.problem.protocol.SolidProblem`), so the displacement and the
-three-field problem are treated alike. All reductions use ``mesh.comm``; only
-rank 0 writes files.
+three-field problem are treated alike; the explicit scheme
+(:class:`~hyperfem.dynamics.ExplicitDynamics`) offers the same members. All
+reductions use ``mesh.comm``.
+
+:class:`Diagnostics` writes no files. In a run it is a
+:class:`~hyperfem.simulation.Recorder`: its columns join the run's rows, which
+:class:`~hyperfem.simulation.CSVLog` writes as CSV and
+:class:`~hyperfem.simulation.JSONSummary` as JSON (with :meth:`Diagnostics.summary`)::
+
+    diagnostics = Diagnostics(problem, [(4.5, 1.5, 1.5)])
+    outputs = [Recorder(diagnostics), CSVLog("out/diagnostics.csv"), JSONSummary("out/summary.json")]
+    Simulation(problem, NewtonSolver(problem), stepping, outputs).run()
 """
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 import ufl
@@ -34,7 +42,6 @@ from dolfinx import fem
 from hyperfem.dynamics.incremental import IncrementalProblem
 from hyperfem.solver.stepping import StepRecord
 from hyperfem.io.probes import PointProbe, QuadratureMinimum
-from hyperfem.io.results import on_rank0, write_json
 
 __all__ = ["Diagnostics"]
 
@@ -131,30 +138,3 @@ class Diagnostics:
             "volume_gain_max": float(vol.max() - 1.0),
             "final_time": float(self.rows[-1]["time"]) if self.rows else 0.0,
         }
-
-    def write_csv(self, path: str | Path) -> None:
-        """Write all rows to ``path`` (rank 0 writes; every rank must call).
-
-        Raises:
-            OutputError: On every rank, if the file cannot be written.
-        """
-        if not self.rows:
-            return
-        path = Path(path)
-
-        def write() -> None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with path.open("w", newline="") as fh:
-                writer = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
-                writer.writeheader()
-                writer.writerows(self.rows)
-
-        on_rank0(self.problem.domain.comm, write, f"cannot write {path}")
-
-    def write_json(self, path: str | Path, extra: dict | None = None) -> None:
-        """Write the summary (plus ``extra``) to ``path`` with :func:`~hyperfem.io.write_json`.
-
-        Raises:
-            OutputError: On every rank, if the file cannot be written.
-        """
-        write_json(path, {**(extra or {}), "summary": self.summary()}, self.problem.domain.comm)
