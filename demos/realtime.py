@@ -31,6 +31,10 @@
 # for every step the residual it leaves, $\|r\|/\|r_0\|$ — a real-time step is
 # allowed to be inexact, but never silently.
 #
+# The frame loop is the demo's own, not a `Simulation`: the frame clock drives
+# the steps, and no file is written between frames (the module docstring of
+# `hyperfem.dynamics.realtime` says why).
+#
 # Run with `python demos/realtime.py` or `mpiexec -n 2 python demos/realtime.py --h 0.6`;
 # `--config` picks the linear solver: the default `cg-icc-modified` keeps the
 # tangent and its ICC(0) factors over steps (modified Newton) until a step
@@ -42,7 +46,6 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import json  # noqa: E402
 import math  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -56,7 +59,7 @@ from hyperfem import dynamics as dyn  # noqa: E402
 from hyperfem.cases.cantilever_dynamics import CantileverDynamics  # noqa: E402
 from hyperfem.cli import ArgumentParser, positive_float, positive_int, run  # noqa: E402
 from hyperfem.dynamics.realtime import CONFIGS, RealtimeStepper  # noqa: E402
-from hyperfem.io import PointProbe, ensure_output_dir  # noqa: E402
+from hyperfem.io import PointProbe, ensure_output_dir, write_json  # noqa: E402
 from hyperfem.mesh.beam import LENGTH  # noqa: E402
 
 GRAB_POINT = (LENGTH / 2, 0.0, 0.0)
@@ -174,12 +177,11 @@ def main(argv=None) -> dict:
             f"max {stats.relative_residual_max:.2e}; {stats.unconverged} of {stats.steps} steps ended on the budget",
             flush=True,
         )
-    if comm.rank == 0:
-        if out is not None:
-            (out / "realtime.json").write_text(json.dumps(summary, indent=2))
-        if not args.quiet:
-            where = out / "realtime.json" if out is not None else "none (give --output DIR for a JSON summary)"
-            print(f"output: {where}", flush=True)
+    if out is not None:
+        write_json(out / "realtime.json", summary, comm)
+    if comm.rank == 0 and not args.quiet:
+        where = out / "realtime.json" if out is not None else "none (give --output DIR for a JSON summary)"
+        print(f"output: {where}", flush=True)
     return summary
 
 

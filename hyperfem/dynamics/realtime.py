@@ -65,6 +65,22 @@ machine; Newton with a fresh tangent per iteration reached 30 steps/s up to
 about 4,000–6,000 tetrahedra. At ``rtol`` :math:`10^{-4}` every preset ends 33
 steps within :math:`3\cdot 10^{-6}` (relative) of the most converged one at
 the test point.
+
+**Not a** :class:`~hyperfem.simulation.Simulation`. Every other time stepper
+(implicit, semi-implicit, explicit) runs as a ``Simulation`` with its outputs;
+this one does not, by design. A ``Simulation`` owns the time: its
+:class:`~hyperfem.solver.stepping.StepPolicy` chooses the steps, cuts a failed
+one back and retries it, and its outputs write files after every step (a CSV
+line, the JSON summary rewritten, a VTX frame: milliseconds each, against a
+33 ms frame). A real-time step is driven by the caller's frame clock instead
+(one :meth:`RealtimeStepper.step` per frame, ``step(t)`` to catch up after a
+dropped frame), must end within the frame on a fixed Newton budget, and is
+never retried: it is accepted with the residual it leaves, which its
+:class:`RealtimeStep` reports. The state is the
+:class:`~hyperfem.dynamics.IncrementalProblem`'s, so between frames anything
+can read it (:class:`~hyperfem.dynamics.Diagnostics`, probes), and files are
+written after the frames (``demos/realtime.py`` writes its summary with
+:func:`~hyperfem.io.write_json`).
 """
 
 from __future__ import annotations
