@@ -56,7 +56,12 @@ class CaseFileError(ParameterError):
 
 @dataclass(frozen=True)
 class Key:
-    """Declaration of one key of a table.
+    """Declaration of one key of a table: its check, and its documentation.
+
+    The declarations are the one source of the case-file schema: :func:`check_value`
+    checks against the first group of attributes; ``hyperfem schema`` (the commented
+    reference) and ``hyperfem schema --json`` (a JSON Schema) are generated from all of
+    them by :mod:`hyperfem.app.reference`.
 
     Attributes:
         kind: One of :data:`KINDS`.
@@ -66,7 +71,18 @@ class Key:
         minimum: Numbers must be ``>= minimum``.
         below: Numbers must be ``< below``.
         length: Number of entries of a ``vector`` (or of each row of a ``matrix``).
-        help: One line for messages and documentation.
+        help: One line for the documentation: what it is, its unit, the class or keyword it feeds.
+        hint: Added to the message of a missing required key (``missing required key 'mesh' (HINT)``).
+        maximum: Numbers must be ``<= maximum``: checked by the section's function (its message
+            names the interval), declared here for the documentation.
+        pattern: A regular expression the whole string must match: checked by the section's
+            function, declared here for the documentation.
+        default: The value the run uses when the key is absent (documentation only: an absent
+            key stays absent; ``None``: no fixed default, the help says what happens).
+        example: A value shown in the reference (default: ``default``).
+        shape: What the value may be, a name of :data:`hyperfem.app.reference.SHAPES`
+            (``"profile"``, ``"reactions"``, ...): needed by ``kind="any"``, and by a
+            ``table`` whose keys are not declared (``petsc_options``).
     """
 
     kind: str
@@ -77,10 +93,18 @@ class Key:
     below: float | None = None
     length: int | None = None
     help: str = ""
+    hint: str = ""
+    maximum: float | None = None
+    pattern: str | None = None
+    default: object = None
+    example: object = None
+    shape: str = ""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"Key: unknown kind {self.kind!r}")
+        if self.kind == "any" and not self.shape:
+            raise ValueError("Key: a key of kind 'any' needs a shape (what its value may be)")
 
 
 def join(where: str, key: str | int) -> str:
@@ -227,6 +251,6 @@ def check_table(
             )
     for name, key in keys.items():
         if key.required and name not in table:
-            hint = f" ({key.help})" if key.help else ""
+            hint = f" ({key.hint})" if key.hint else ""
             raise CaseFileError(f"{where or 'case'}: missing required key {name!r}{hint}")
     return {name: check_value(value, keys[name], join(where, name)) for name, value in table.items()}

@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 from hyperfem.app.schema import CaseFileError, Key, check_table, check_value, describe, join, suggestion
@@ -45,7 +44,7 @@ from hyperfem.app.spec import (
 from hyperfem.errors import ParameterError
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
 from hyperfem.simulation.fields import FIELDS, FORMATS
-from hyperfem.simulation.render import RENDER_SCALARS, UNDEFORMED, check_render_options
+from hyperfem.simulation.render import DEFAULT_VIEW, RENDER_SCALARS, UNDEFORMED, check_render_options
 
 __all__ = [
     "RENDER",
@@ -67,164 +66,286 @@ NAME = re.compile(r"[A-Za-z0-9_.+-]+")
 """Allowed run names (they name the output files)."""
 
 # -- the schema ---------------------------------------------------------------------------------
+# Every key of a case file, declared once: the checks below use these tables, and `hyperfem schema`
+# (the commented reference) and `hyperfem schema --json` (a JSON Schema) are generated from them
+# (hyperfem.app.reference). A help says what the key is, its unit, the class or keyword it feeds.
 TOP = {
-    "name": Key("string", help="name of the run"),
-    "description": Key("string"),
-    "mesh": Key("table", required=True, help="a [mesh] table with file or generator"),
-    "problem": Key("table"),
-    "material": Key("tables", required=True, help="at least one [[material]]"),
-    "fibres": Key("table"),
-    "bc": Key("tables"),
-    "load": Key("tables"),
-    "stepping": Key("table"),
-    "solver": Key("table"),
-    "output": Key("table"),
+    "name": Key("string", pattern=NAME.pattern, example="bend",
+                help="name of the run, names the output files (NAME.csv, NAME.json, NAME.bp); default: the case "
+                "file's stem"),
+    "description": Key("string", example="cantilever bend under a dead end traction",
+                       help="one line about the run, for the reader"),
+    "mesh": Key("table", required=True, hint="a [mesh] table with file or generator",
+                help="the mesh: a gmsh file (hf.read_mesh) or a generator (hf.beam_mesh, hf.mesh.fusiform_mesh); "
+                "give file or generator"),
+    "problem": Key("table", help="formulation and discretisation (hf.HyperelasticProblem, "
+                   "hf.MixedHyperelasticProblem)"),
+    "material": Key("tables", required=True, hint="at least one [[material]]",
+                    help="the strain energy: one [[material]] for the whole body, or one per region; its keys "
+                    "depend on law"),
+    "fibres": Key("table", help="fibre directions, needed by law \"muscle\" (hf.fibres); its keys depend on type"),
+    "bc": Key("tables", help="Dirichlet conditions, one [[bc]] each; its keys depend on type"),
+    "load": Key("tables", help="loads, one [[load]] each; its keys depend on type"),
+    "stepping": Key("table", help="a load ramp (type = \"quasi-static\", the default) or a time integration "
+                    "(type = \"dynamic\"); its keys depend on type"),
+    "solver": Key("table", help="Newton's method (hf.NewtonSolver) and PETSc options"),
+    "output": Key("table", help="what the run writes, into one folder (hyperfem.simulation outputs)"),
 }
 
 MESH = {
-    "file": Key("string", help="gmsh .msh file, relative to the case file"),
-    "generator": Key("string", choices=("beam", "fusiform")),
-    "size": Key("number", above=0.0),
-    "order": Key("integer", minimum=1, below=3),
-    "geometry": Key("table"),
+    "file": Key("string", example="../meshes/beam_h2.msh",
+                help="gmsh .msh file with named physical groups, relative to the case file (hf.read_mesh)"),
+    "generator": Key("string", choices=("beam", "fusiform"), example="beam",
+                     help="generate the mesh instead: beam (hf.beam_mesh, the 10 x 4 x 4 m beam) or fusiform "
+                     "(hf.mesh.fusiform_mesh, the spindle muscle)"),
+    "size": Key("number", above=0.0, example=2.0,
+                help="generator only: target element size h in m; default 1.0 (beam), 0.004 (fusiform)"),
+    "order": Key("integer", minimum=1, below=3, default=1,
+                 help="generator only: geometric order of the tetrahedra (order)"),
+    "geometry": Key("table", help="fusiform generator only: its dimensions (hf.mesh.FusiformGeometry)"),
 }
 
 GEOMETRY = {
-    "belly_length": Key("number", above=0.0),
-    "belly_radius": Key("number", above=0.0),
-    "tendon_radius": Key("number", above=0.0),
-    "tendon_length": Key("number", above=0.0),
-    "sections": Key("integer", minimum=3),
+    "belly_length": Key("number", above=0.0, default=0.06, help="length of the muscle belly in m"),
+    "belly_radius": Key("number", above=0.0, default=0.012, help="largest radius of the belly in m"),
+    "tendon_radius": Key("number", above=0.0, default=0.004, help="tendon radius in m, below belly_radius"),
+    "tendon_length": Key("number", above=0.0, default=0.015, help="length of each tendon in m"),
+    "sections": Key("integer", minimum=3, default=9, help="lofted cross-sections of the belly (odd)"),
 }
 
 PROBLEM = {
-    "formulation": Key("string", choices=FORMULATIONS),
-    "degree": Key("integer", minimum=1),
-    "pressure_degree": Key("integer", minimum=1),
-    "quadrature_degree": Key("integer", minimum=1),
+    "formulation": Key("string", choices=FORMULATIONS, default="displacement",
+                       help="displacement: hf.HyperelasticProblem (u); mixed: hf.MixedHyperelasticProblem (u, p, "
+                       "theta), for nearly incompressible solids"),
+    "degree": Key("integer", minimum=1, example=1,
+                  help="polynomial degree of the displacement (degree); default 1 (displacement), 2 (mixed)"),
+    "pressure_degree": Key("integer", minimum=1, example=1,
+                           help="mixed only: degree of pressure and volume ratio (pressure_degree); default degree "
+                           "- 1"),
+    "quadrature_degree": Key("integer", minimum=1, example=4,
+                             help="quadrature degree of the energy (quadrature_degree); default: from the degree "
+                             "and the cell type"),
 }
 
 _COMMON_MATERIAL = {
-    "law": Key("string", required=True, choices=LAWS),
-    "region": Key("string"),
-    "density": Key("number", above=0.0, help="mass density (> 0)"),
+    "law": Key("string", required=True, choices=LAWS, example="neo_hookean",
+               help="the strain energy (hf.materials): isotropic laws take two elastic constants, mooney_rivlin "
+               "c1, c2, K, muscle a preset or c1, c2, K, T_max"),
+    "region": Key("string", example="muscle",
+                  help="cell group of the mesh this material fills; needed with several materials; default: the "
+                  "whole body"),
+    "density": Key("number", above=0.0, example=1000.0,
+                   help="mass density in kg/m^3 (dyn.MassDensity); needed by a dynamic run"),
 }
 _LAME = {
-    "E": Key("number", above=0.0),
-    "nu": Key("number", above=-1.0, below=0.5),
-    "mu": Key("number", above=0.0),
-    "lambda": Key("number"),
-    "bulk_modulus": Key("number", above=0.0),
-    "volumetric": Key("string", choices=VOLUMETRIC),
+    "E": Key("number", above=0.0, example=1.0e6,
+             help="Young's modulus in Pa, with nu (hf.materials.LameParameters.from_youngs)"),
+    "nu": Key("number", above=-1.0, below=0.5, example=0.3, help="Poisson's ratio, with E"),
+    "mu": Key("number", above=0.0, example=3.8e5,
+              help="shear modulus in Pa, with lambda or bulk_modulus, or alone for arap (LameParameters mu)"),
+    "lambda": Key("number", example=5.8e5, help="first Lame parameter in Pa, with mu (LameParameters lmbda)"),
+    "bulk_modulus": Key("number", above=0.0, example=8.3e5,
+                        help="bulk modulus K in Pa, with mu (lambda = K - 2 mu / 3; mixed: the K of U(theta))"),
+    "volumetric": Key("string", choices=VOLUMETRIC, default="log",
+                      help="formulation = \"mixed\" only: the volumetric energy U(theta) (SplitEnergy volumetric)"),
 }
 _MOONEY = {
-    "c1": Key("number", above=0.0, required=True),
-    "c2": Key("number", minimum=0.0, required=True),
-    "K": Key("number", above=0.0, required=True),
-    "volumetric": Key("string", choices=VOLUMETRIC),
+    "c1": Key("number", above=0.0, required=True, example=3.0e4,
+              help="Mooney-Rivlin c1 in Pa (hf.materials.MooneyRivlinParameters)"),
+    "c2": Key("number", minimum=0.0, required=True, example=1.0e4, help="Mooney-Rivlin c2 in Pa"),
+    "K": Key("number", above=0.0, required=True, example=3.0e6, help="bulk modulus in Pa"),
+    "volumetric": Key("string", choices=VOLUMETRIC, default="log", help="the volumetric energy U(J)"),
 }
 _MUSCLE = {
-    "preset": Key("string", choices=("muscle", "tendon")),
-    "c1": Key("number", above=0.0),
-    "c2": Key("number", minimum=0.0),
-    "K": Key("number", above=0.0),
-    "T_max": Key("number", minimum=0.0),
-    "lambda_ofl": Key("number", above=0.0),
-    "P1": Key("number", minimum=0.0),
-    "P2": Key("number", above=0.0),
-    "l_star": Key("number", above=1.0),
-    "volumetric": Key("string", choices=VOLUMETRIC),
-    "activation": Key("any"),
+    "preset": Key("string", choices=("muscle", "tendon"), example="muscle",
+                  help="seed 000 parameters (MuscleParameters.muscle: c1 30 kPa, c2 10 kPa, K 60 kPa, T_max 80 kPa; "
+                  ".tendon: c1 60 kPa), the keys given override them"),
+    "c1": Key("number", above=0.0, example=3.0e4,
+              help="matrix Mooney-Rivlin c1 in Pa (hf.materials.MuscleParameters); needed without preset"),
+    "c2": Key("number", minimum=0.0, example=1.0e4, help="matrix Mooney-Rivlin c2 in Pa; needed without preset"),
+    "K": Key("number", above=0.0, example=3.0e6, help="bulk modulus in Pa; needed without preset"),
+    "T_max": Key("number", minimum=0.0, example=8.0e4,
+                 help="maximum isometric fibre stress in Pa; needed without preset"),
+    "lambda_ofl": Key("number", above=0.0, default=1.0, help="optimal fibre stretch"),
+    "P1": Key("number", minimum=0.0, default=0.05, help="scale of the passive fibre curve"),
+    "P2": Key("number", above=0.0, default=6.6, help="exponent of the passive fibre curve"),
+    "l_star": Key("number", above=1.0, default=1.4, help="fibre stretch where the passive curve turns linear"),
+    "volumetric": Key("string", choices=VOLUMETRIC, default="log", help="the volumetric energy U(J)"),
+    "activation": Key("any", shape="activation", example="linear",
+                      help="active fraction alpha in [0, 1]: a number, or a profile f(t) (\"linear\": alpha = load "
+                      "factor); default 0 (passive)"),
 }
 
+FIBRE_COMMON = {
+    "type": Key("string", required=True, choices=FIBRE_TYPES, example="laplace",
+                help="laplace: hf.fibres.laplace_fibres (along the gradient of a potential from source to target); "
+                "constant: constant_fibres; file: fibres_from_file"),
+    "representation": Key("string", choices=REPRESENTATIONS, default="DG0",
+                          help="laplace and constant: the space of the fibre field (representation)"),
+}
+"""Keys of every ``[fibres]`` table; :data:`FIBRES` adds those of each ``type``."""
 FIBRES = {
-    "laplace": {"source": Key("string", required=True), "target": Key("string", required=True)},
-    "constant": {"direction": Key("numbers", required=True)},
+    "laplace": {
+        "source": Key("string", required=True, example="origin", help="boundary where the fibres start (phi = 0)"),
+        "target": Key("string", required=True, example="insertion", help="boundary where they end (phi = 1)"),
+    },
+    "constant": {"direction": Key("numbers", required=True, example=(1.0, 0.0, 0.0),
+                                  help="the fibre direction (normalised)")},
     "file": {
-        "file": Key("string", required=True),
-        "name": Key("string", required=True),
-        "location": Key("string", choices=("point", "cell")),
+        "file": Key("string", required=True, example="fibres.vtu",
+                    help="mesh file with the fibre vectors (read by meshio), relative to the case file"),
+        "name": Key("string", required=True, example="fibres", help="name of the point or cell data array"),
+        "location": Key("string", choices=("point", "cell"), default="point",
+                        help="point data (a P1 field) or cell data (DG0)"),
     },
 }
 
-_BC_COMMON = {"type": Key("string", required=True, choices=BC_TYPES), "boundary": Key("string", required=True)}
+_BC_COMMON = {
+    "type": Key("string", required=True, choices=BC_TYPES, example="clamp",
+                help="clamp: hf.Clamp (u = 0); displacement: hf.PrescribedDisplacement; rotation: rotating_surface "
+                "(a rigid rotation)"),
+    "boundary": Key("string", required=True, example="clamped", help="facet group of the mesh it holds"),
+}
 BCS = {
     "clamp": {},
     "displacement": {
-        "value": Key("numbers", required=True),
-        "components": Key("any"),
-        "profile": Key("any"),
+        "value": Key("numbers", required=True, example=(-0.5,),
+                     help="displacement in m at f = 1: three values, or one per entry of components"),
+        "components": Key("any", shape="components", example=("y",),
+                          help="the components it prescribes (0, 1, 2 or \"x\", \"y\", \"z\"); default all"),
+        "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling value"),
     },
     "rotation": {
-        "axis": Key("vector", length=3, required=True),
-        "center": Key("vector", length=3),
-        "angle": Key("number", required=True, help="angle in radians, scaled by the profile"),
-        "profile": Key("any"),
+        "axis": Key("vector", length=3, required=True, example=(1.0, 0.0, 0.0), help="the rotation axis"),
+        "center": Key("vector", length=3, default=(0.0, 0.0, 0.0), help="a point on the axis, in m"),
+        "angle": Key("number", required=True, hint="angle in radians, scaled by the profile", example=1.57,
+                     help="rotation angle in radians at f = 1"),
+        "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling angle"),
     },
 }
 
-_LOAD_COMMON = {"type": Key("string", required=True, choices=LOAD_TYPES)}
+_LOAD_COMMON = {
+    "type": Key("string", required=True, choices=LOAD_TYPES, example="dead_traction",
+                help="dead_traction: hf.DeadTraction; follower_traction: hf.FollowerTraction (turns with the "
+                "surface); pressure: hf.FollowerPressure; body_force: hf.BodyForce"),
+}
+_PROFILE = Key("any", shape="profile", default="linear", help="time profile f(t) scaling value")
 LOADS = {
     "dead_traction": {
-        "boundary": Key("string", required=True),
-        "value": Key("any", required=True),
-        "profile": Key("any"),
+        "boundary": Key("string", required=True, example="free_end", help="facet group it acts on"),
+        "value": Key("any", required=True, shape="field", example=(0.0, -5.0e3, 0.0),
+                     help="traction in Pa per reference area at f = 1, fixed direction: a vector or {matrix, offset} "
+                     "(A X + b of the reference position, AffineField)"),
+        "profile": _PROFILE,
     },
     "follower_traction": {
-        "boundary": Key("string", required=True),
-        "value": Key("any", required=True),
-        "profile": Key("any"),
+        "boundary": Key("string", required=True, example="free_end", help="facet group it acts on"),
+        "value": Key("any", required=True, shape="field", example=(0.0, -5.0e3, 0.0),
+                     help="traction in Pa per reference area at f = 1: a vector or {matrix, offset} (A x + b of the "
+                     "current position, AffineField)"),
+        "profile": _PROFILE,
     },
     "pressure": {
-        "boundary": Key("string", required=True),
-        "value": Key("number", required=True),
-        "profile": Key("any"),
+        "boundary": Key("string", required=True, example="free_end", help="facet group it acts on"),
+        "value": Key("number", required=True, example=1.0e4,
+                     help="pressure in Pa per current area on the current normal at f = 1; positive compresses"),
+        "profile": _PROFILE,
     },
-    "body_force": {"region": Key("string"), "value": Key("any", required=True), "profile": Key("any")},
+    "body_force": {
+        "region": Key("string", example="muscle", help="cell group it acts on; default: the whole body"),
+        "value": Key("any", required=True, shape="field", example=(0.0, -9810.0, 0.0),
+                     help="force in N/m^3 per reference volume at f = 1: a vector or {matrix, offset} (AffineField)"),
+        "profile": _PROFILE,
+    },
 }
+AFFINE = {
+    "matrix": Key("matrix", required=True, example=((0.0, 0.0, 0.0), (0.0, 0.0, 5.0e3), (0.0, -5.0e3, 0.0)),
+                  help="the square matrix A, one row per component"),
+    "offset": Key("numbers", example=(0.0, 0.0, 0.0), help="the offset b; default 0"),
+}
+"""Keys of an affine load value ``{matrix = A, offset = b}``: :class:`~hyperfem.loading.AffineField`."""
 
+PROFILE_TYPE = Key("string", required=True, choices=PROFILE_TYPES, example="ramp",
+                   help="linear: f = t; steady: f = value; ramp: hyperfem.loading.Ramp; table: hyperfem.loading.Table "
+                   "(piecewise linear)")
+PROFILES = {
+    "linear": {},
+    "steady": {"value": Key("number", default=1.0, help="the constant value")},
+    "ramp": {
+        "t1": Key("number", required=True, example=0.5, help="where the ramp ends (load factor or time in s)"),
+        "final": Key("number", default=1.0, help="the value from t1 on"),
+        "initial": Key("number", default=0.0, help="the value up to t0"),
+        "t0": Key("number", default=0.0, help="where the ramp starts, below t1"),
+    },
+    "table": {
+        "times": Key("numbers", required=True, example=(0.0, 0.5, 1.0),
+                     help="strictly increasing times (load factors or s), at least 2"),
+        "values": Key("numbers", required=True, example=(0.0, 1.0, 0.5), help="the values at those times"),
+    },
+}
+"""Keys of a profile table ``{type = ..., ...}`` besides :data:`PROFILE_TYPE`, per type."""
+
+_STEPPING_TYPE = Key("string", choices=("quasi-static", "dynamic"), default="quasi-static",
+                     help="quasi-static: a load ramp (hf.LoadStepping); dynamic: a time integration (dyn.TimeStepping "
+                     "and a scheme)")
 QUASI_STATIC = {
-    "type": Key("string", choices=("quasi-static", "dynamic")),
-    "end": Key("number", help="final load factor (default 1)"),
-    "increment": Key("number", above=0.0),
-    "min_increment": Key("number", above=0.0),
-    "max_increment": Key("number", above=0.0),
-    "growth": Key("number", minimum=1.0),
-    "easy_iterations": Key("integer", minimum=1),
-    "max_steps": Key("integer", minimum=1),
-    "solve_initial": Key("boolean"),
+    "type": _STEPPING_TYPE,
+    "end": Key("number", default=1.0, help="the final load factor (LoadStepping.policy(end))"),
+    "increment": Key("number", above=0.0, default=1.0, help="the first load-factor increment (initial_increment)"),
+    "min_increment": Key("number", above=0.0, default=1.0 / 1024, help="the smallest increment before giving up"),
+    "max_increment": Key("number", above=0.0, default=1.0, help="the largest increment"),
+    "growth": Key("number", minimum=1.0, default=2.0, help="the increment's factor after an easy step"),
+    "easy_iterations": Key("integer", minimum=1, default=6,
+                           help="a step converging in at most this many Newton iterations is easy"),
+    "max_steps": Key("integer", minimum=1, default=10000, help="limit on attempted steps"),
+    "solve_initial": Key("boolean", default=False, help="solve at load factor 0 first (Simulation solve_initial)"),
 }
 DYNAMIC = {
-    "type": Key("string", choices=("quasi-static", "dynamic")),
-    "scheme": Key("string", choices=SCHEMES),
-    "beta": Key("number", above=0.0),
-    "gamma": Key("number", above=0.0),
-    "rho_inf": Key("number", minimum=0.0),
-    "dt": Key("number", above=0.0, required=True),
-    "t_end": Key("number", above=0.0, required=True),
-    "dt_min": Key("number", above=0.0),
-    "dt_max": Key("number", above=0.0),
-    "adaptive": Key("boolean"),
-    "tolerance": Key("number", above=0.0),
-    "grow_after": Key("integer", minimum=1),
-    "must_hit": Key("numbers"),
-    "max_steps": Key("integer", minimum=1),
-    "lumped_mass": Key("boolean"),
-    "damping": Key("table"),
-    "initial_acceleration": Key("boolean"),
+    "type": _STEPPING_TYPE,
+    "scheme": Key("string", choices=SCHEMES, default="newmark",
+                  help="the time integrator: dyn.Newmark, dyn.BackwardEuler, dyn.GeneralizedAlpha, dyn.QuasiStatic "
+                  "(no inertia)"),
+    "beta": Key("number", above=0.0, default=0.25, help="scheme newmark only: Newmark's beta"),
+    "gamma": Key("number", above=0.0, default=0.5, help="scheme newmark only: Newmark's gamma"),
+    "rho_inf": Key("number", minimum=0.0, maximum=1.0, default=0.8,
+                   help="scheme generalized_alpha only: the high-frequency spectral radius"),
+    "dt": Key("number", above=0.0, required=True, example=0.05, help="the time step in s (TimeStepping dt)"),
+    "t_end": Key("number", above=0.0, required=True, example=1.0, help="the final time in s"),
+    "dt_min": Key("number", above=0.0, example=0.001, help="the smallest step in s before giving up; default dt/1024"),
+    "dt_max": Key("number", above=0.0, example=0.1, help="the largest step in s; default dt (adaptive: 16 dt)"),
+    "adaptive": Key("boolean", default=False, help="step-doubling error control"),
+    "tolerance": Key("number", above=0.0, default=1e-4,
+                     help="adaptive only: allowed nodal position difference per step in m"),
+    "grow_after": Key("integer", minimum=1, default=4, help="accepted steps before trying a doubled step"),
+    "must_hit": Key("numbers", example=(0.5,),
+                    help="times in s that steps land on (ramp ends, table times and output times are added)"),
+    "max_steps": Key("integer", minimum=1, default=1000000, help="limit on attempted steps"),
+    "lumped_mass": Key("boolean", default=False, help="a row-sum lumped mass (dyn.MassDensity lumped); degree 1 only"),
+    "damping": Key("table", help="Rayleigh damping C = alpha M + beta K0 (dyn.RayleighDamping)"),
+    "initial_acceleration": Key("boolean", default=True,
+                                help="solve M a0 = f - r(u0) for the initial acceleration before the first step"),
 }
-DAMPING = {"alpha": Key("number", minimum=0.0), "beta": Key("number", minimum=0.0)}
+DAMPING = {
+    "alpha": Key("number", minimum=0.0, default=0.0, help="mass-proportional coefficient in 1/s"),
+    "beta": Key("number", minimum=0.0, default=0.0, help="stiffness-proportional coefficient in s"),
+}
 
 SOLVER = {
-    "rtol": Key("number", above=0.0),
-    "atol": Key("number", minimum=0.0),
-    "stol": Key("number", minimum=0.0),
-    "max_iterations": Key("integer", minimum=1),
-    "line_search": Key("string", choices=("bt", "basic", "cp", "l2", "nleqerr")),
-    "petsc_options": Key("table"),
-    "min_jacobian": Key("any"),
-    "step_filter": Key("string", choices=("auto", "exact", "bisection")),
-    "predictor": Key("boolean"),
+    "rtol": Key("number", above=0.0, default=1e-9, help="relative residual tolerance (snes_rtol)"),
+    "atol": Key("number", minimum=0.0, default=1e-10, help="absolute residual tolerance (snes_atol)"),
+    "stol": Key("number", minimum=0.0, default=0.0, help="relative step tolerance (snes_stol)"),
+    "max_iterations": Key("integer", minimum=1, default=50, help="Newton iterations per solve (snes_max_it)"),
+    "line_search": Key("string", choices=("bt", "basic", "cp", "l2", "nleqerr"), example="bt",
+                       help="the line search (snes_linesearch_type); default bt, cp for non-conservative loads"),
+    "petsc_options": Key("table", shape="petsc_options", example={"ksp_type": "preonly", "pc_type": "lu"},
+                         help="PETSc options as they are, names without the leading '-' (NewtonSolver petsc_options)"),
+    "min_jacobian": Key("any", shape="min_jacobian", default="auto",
+                        help="the inversion guard: the smallest admissible J at quadrature points, \"auto\" (1e-6, off "
+                        "for invertible laws) or false (off)"),
+    "step_filter": Key("string", choices=("auto", "exact", "bisection"), default="auto",
+                       help="how the guard shortens a Newton step: exact (P1 on straight simplices), bisection, auto"),
+    "predictor": Key("boolean", default=True,
+                     help="carry a change of the boundary values into the interior with one tangent solve"),
 }
 _SUGAR = {
     "rtol": "snes_rtol",
@@ -235,38 +356,52 @@ _SUGAR = {
 }
 
 OUTPUT = {
-    "directory": Key("string", help="output folder, relative to the working folder"),
-    "fields": Key("strings", choices=FIELDS),
-    "format": Key("string", choices=FORMATS),
-    "times": Key("numbers"),
-    "every": Key("number", above=0.0),
-    "csv": Key("boolean"),
-    "summary": Key("boolean"),
-    "convergence": Key("boolean"),
-    "probes": Key("matrix", length=3),
-    "reactions": Key("any"),
-    "checkpoint": Key("boolean"),
-    "checkpoint_every": Key("integer", minimum=1),
-    "checkpoint_keep": Key("integer", minimum=1),
-    "progress": Key("boolean"),
-    "render": Key("any", help="true, or a table of Render options (a PNG of the deformed body; needs pyvista)"),
+    "directory": Key("string", example="output/bend",
+                     help="output folder, relative to the working folder (run --output replaces it); default "
+                     "output/NAME"),
+    "fields": Key("strings", choices=FIELDS, default=("displacement",),
+                  help="fields written for ParaView (FieldOutput fields); [] writes none"),
+    "format": Key("string", choices=FORMATS, default="vtx", help="field file format: vtx (ADIOS2 .bp) or xdmf"),
+    "times": Key("numbers", example=(0.5, 1.0),
+                 help="write the fields at these load factors or times only; default every step"),
+    "every": Key("number", above=0.0, example=0.1,
+                 help="write the fields at the multiples of this load factor or time only (instead of times)"),
+    "csv": Key("boolean", default=True, help="a row per step in NAME.csv (CSVLog)"),
+    "summary": Key("boolean", default=True, help="the summary NAME.json (JSONSummary)"),
+    "convergence": Key("boolean", default=True, help="the Newton history NAME_convergence.jsonl (ConvergenceLog)"),
+    "probes": Key("matrix", length=3, example=((4.5, 1.5, 1.5),),
+                  help="reference points [x, y, z] in m whose displacement is recorded (Probe)"),
+    "reactions": Key("any", shape="reactions", default="all",
+                     help="force in N and moment in N m on Dirichlet boundaries (Reactions): \"all\", a list of "
+                     "boundaries, or false"),
+    "checkpoint": Key("boolean", default=True, help="false: no checkpoints"),
+    "checkpoint_every": Key("integer", minimum=1, default=10,
+                            help="a checkpoint every this many steps, and at the end (Checkpoint every)"),
+    "checkpoint_keep": Key("integer", minimum=1, default=2, help="checkpoints kept (Checkpoint keep)"),
+    "progress": Key("boolean", default=True, help="a line per step on the terminal (Progress)"),
+    "render": Key("any", shape="render", default=False,
+                  help="true, or a table of Render options (a PNG of the deformed body; needs pyvista)"),
 }
 
 RENDER = {
-    "scalars": Key("string", choices=RENDER_SCALARS),
-    "every": Key("integer", minimum=1, help="also draw every k steps (<name>-000010.png)"),
-    "final": Key("boolean"),
-    "scale": Key("number"),
-    "view": Key("vector", length=3),
-    "up": Key("vector", length=3),
-    "undeformed": Key("string", choices=(*UNDEFORMED, "none")),
-    "window_size": Key("any"),
-    "title": Key("any"),
-    "scalar_bar_title": Key("string"),
-    "cmap": Key("string"),
-    "clim": Key("vector", length=2),
-    "zoom": Key("number", above=0.0),
-    "parallel": Key("boolean"),
+    "scalars": Key("string", choices=RENDER_SCALARS, default=RENDER_SCALARS[0],
+                   help="what colours the surface: |u|, or a field"),
+    "every": Key("integer", minimum=1, example=5, help="also draw every k steps (NAME-000010.png)"),
+    "final": Key("boolean", default=True, help="draw the final state (NAME.png)"),
+    "scale": Key("number", default=1.0, help="displacement magnification"),
+    "view": Key("vector", length=3, default=DEFAULT_VIEW, help="direction from the body towards the camera"),
+    "up": Key("vector", length=3, default=(0.0, 1.0, 0.0), help="up in the picture"),
+    "undeformed": Key("string", choices=(*UNDEFORMED, "none"), default="outline",
+                      help="how the reference body is drawn (none: not at all)"),
+    "window_size": Key("any", shape="window_size", default=(800, 500), help="picture size in pixels [width, height]"),
+    "title": Key("any", shape="title", default=True, help="true: \"NAME, t = ...\"; a string: that; false: none"),
+    "scalar_bar_title": Key("string", example="von Mises stress [Pa]",
+                            help="title of the colour bar; default the field's name"),
+    "cmap": Key("string", default="viridis", help="matplotlib colour map"),
+    "clim": Key("vector", length=2, example=(0.0, 1.0e5),
+                help="fixed colour range [low, high]; default each picture's own"),
+    "zoom": Key("number", above=0.0, default=1.0, help="camera zoom after fitting the body into the picture"),
+    "parallel": Key("boolean", default=True, help="parallel projection (false: perspective)"),
 }
 """Keys of ``[output] render = {...}``: the keyword arguments of :class:`~hyperfem.simulation.render.Render`."""
 
@@ -287,19 +422,8 @@ def check_profile(value: object, where: str) -> Profile:
         raise CaseFileError(f"{where}: expected a profile name, a number or a table, got {describe(value)}")
     if "type" not in value:
         raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(PROFILE_TYPES)})")
-    kind = check_value(value["type"], Key("string", choices=PROFILE_TYPES), join(where, "type"))
-    keys = {
-        "linear": {},
-        "steady": {"value": Key("number")},
-        "ramp": {
-            "t1": Key("number", required=True),
-            "final": Key("number"),
-            "initial": Key("number"),
-            "t0": Key("number"),
-        },
-        "table": {"times": Key("numbers", required=True), "values": Key("numbers", required=True)},
-    }[kind]
-    args = check_table(value, {"type": Key("string"), **keys}, where, what=f"a {kind!r} profile")
+    kind = check_value(value["type"], PROFILE_TYPE, join(where, "type"))
+    args = check_table(value, {"type": PROFILE_TYPE, **PROFILES[kind]}, where, what=f"a {kind!r} profile")
     args.pop("type")
     if kind == "steady":
         args.setdefault("value", 1.0)
@@ -311,7 +435,7 @@ def check_profile(value: object, where: str) -> Profile:
             raise CaseFileError(
                 f"{where}: times and values need the same length (at least 2), got {len(t)} and {len(v)}"
             )
-        if any(b <= a for a, b in zip(t, t[1:])):
+        if any(b <= a for a, b in zip(t, t[1:], strict=False)):
             raise CaseFileError(f"{where}.times: must increase strictly, got {list(t)}")
     return Profile(kind, args)
 
@@ -427,14 +551,10 @@ def check_materials(entries: list, mixed: bool, has_fibres: bool) -> tuple[Mater
 def check_fibres(table: Mapping) -> FibreSpec:
     """``[fibres]``: Laplace rule, constant direction or a file's point/cell data."""
     where = "fibres"
-    common = {
-        "type": Key("string", required=True, choices=FIBRE_TYPES),
-        "representation": Key("string", choices=REPRESENTATIONS),
-    }
     if "type" not in table:
         raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(FIBRE_TYPES)})")
-    kind = check_value(table["type"], common["type"], "fibres.type")
-    values = check_table(table, {**common, **FIBRES[kind]}, where, what=f"fibres of type {kind!r}")
+    kind = check_value(table["type"], FIBRE_COMMON["type"], "fibres.type")
+    values = check_table(table, {**FIBRE_COMMON, **FIBRES[kind]}, where, what=f"fibres of type {kind!r}")
     options = {k: v for k, v in values.items() if k not in ("type", "representation")}
     if kind == "file" and "representation" in values:
         raise CaseFileError("fibres.representation: fibres from a file are P1 (location = \"point\") or DG0 (\"cell\")")
@@ -509,8 +629,7 @@ def _load_value(value: object, kind: str, where: str) -> object:
     if kind == "pressure":
         return value
     if isinstance(value, Mapping):
-        field_ = check_table(value, {"matrix": Key("matrix", required=True), "offset": Key("numbers")}, where,
-                             what="an affine field (A x + b)")
+        field_ = check_table(value, AFFINE, where, what="an affine field (A x + b)")
         rows = field_["matrix"]
         if any(len(r) != len(rows) for r in rows):
             raise CaseFileError(
