@@ -1,72 +1,18 @@
 r"""TOML case files: reading, ``--set`` overrides and validation into a :class:`~hyperfem.app.spec.Case`.
 
 A case file describes one run and maps one to one onto the objects a Python
-script builds (:mod:`hyperfem.app.python_equivalent` writes that script;
-every key below is the keyword of the same name, or the one noted, of the
-class named). Examples: ``cases/*.toml``.
+script builds (``hyperfem run CASE --print-python`` writes that script): a
+``[mesh]``, ``[problem]``, one or more ``[[material]]``, optionally
+``[fibres]``, ``[[bc]]``, ``[[load]]``, ``[stepping]``, ``[solver]`` and
+``[output]``; each key is the keyword of the same name (or the one its help
+names) of the class that table builds. Examples: ``cases/*.toml``.
 
-.. code-block:: toml
-
-    name = "bend"                   # names the output files; default: the file's stem
-    description = "..."
-
-    [mesh]                          # hf.read_mesh(file), or a generator:
-    file = "../meshes/beam_h2.msh"  #   relative to the case file
-    # generator = "beam"            #   "beam" (hf.beam_mesh) | "fusiform" (hf.mesh.fusiform_mesh)
-    # size = 2.0                    #   h; order = 1 | 2; [mesh.geometry] = FusiformGeometry fields
-
-    [problem]                       # HyperelasticProblem | MixedHyperelasticProblem
-    formulation = "displacement"    # | "mixed" (three-field u, p, theta)
-    degree = 1                      # default 1 (displacement), 2 (mixed); pressure_degree, quadrature_degree
-
-    [[material]]                    # one, or one per region = "cell group"
-    law = "neo_hookean"             # LAWS; mixed: neo_hookean, mooney_rivlin, muscle
-    E = 1.0e6                       # or mu + lambda, or mu + bulk_modulus (isotropic laws)
-    nu = 0.3                        # in (-1, 0.5)
-    density = 1000.0                # > 0; needed by a dynamic run
-    # volumetric = "log"            # mixed only: "log" | "quadratic" | "simo_taylor"
-    # mooney_rivlin: c1, c2, K; muscle: preset = "muscle" | "tendon", c1, c2, K, T_max, lambda_ofl,
-    #   P1, P2, l_star, activation = number | profile
-
-    # [fibres]                      # law "muscle": laplace_fibres | constant_fibres | fibres_from_file
-    # type = "laplace"              #   source, target | direction | file, name, location
-    # source = "origin"             #   representation = "DG0" | "P1" | "quadrature"
-    # target = "insertion"
-
-    [[bc]]
-    type = "clamp"                  # hf.Clamp(boundary)
-    boundary = "clamped"
-    # type = "displacement": value = [...], components = ["x", ...], profile   (PrescribedDisplacement)
-    # type = "rotation": axis, center, angle (radians), profile                 (rotating_surface)
-
-    [[load]]
-    type = "dead_traction"          # | "follower_traction" | "pressure" (FollowerPressure) | "body_force"
-    boundary = "free_end"           # body_force: region (optional)
-    value = [0.0, -5.0e3, 0.0]      # or {matrix = [[...]], offset = [...]}: A x + b (AffineField); pressure: a number
-    profile = "linear"              # "linear" | "steady" | number | {type = "ramp" | "table", ...}
-
-    [stepping]                      # hf.LoadStepping: increment (initial_increment), min_increment,
-    type = "quasi-static"           #   max_increment, growth, easy_iterations, max_steps; end; solve_initial
-    increment = 1.0
-    # type = "dynamic": scheme = "newmark" (beta, gamma) | "backward_euler" | "generalized_alpha" (rho_inf)
-    #   | "quasi_static"; dt, t_end, dt_min, dt_max, adaptive, tolerance, grow_after, must_hit, max_steps
-    #   (dyn.TimeStepping); lumped_mass; damping = {alpha, beta} (dyn.RayleighDamping); initial_acceleration
-
-    [solver]                        # hf.NewtonSolver
-    rtol = 1e-8                     # snes_rtol; atol, stol, max_iterations (snes_max_it), line_search
-    petsc_options = { ksp_type = "preonly" }   # given to PETSc as they are
-    # min_jacobian = number | "auto" | false; step_filter = "auto" | "exact" | "bisection"; predictor
-
-    [output]                        # hyperfem.simulation outputs, in the folder below
-    directory = "output/bend"       # relative to the working folder; default output/<name>
-    probes = [[4.5, 1.5, 1.5]]      # Probe
-    reactions = "all"               # Reactions: force and moment of every Dirichlet boundary; or a list; false
-    fields = ["displacement"]       # FieldOutput: + cauchy_stress, von_mises, J, fibre_stretch, activation
-    format = "vtx"                  # | "xdmf"; times = [...] or every = dt: frames only then
-    checkpoint_every = 10           # Checkpoint (and at the end, and after a failed step); checkpoint = false
-    # csv, summary, convergence, progress = true | false (CSVLog, JSONSummary, ConvergenceLog, Progress)
-    # render = true | {scalars = "von_mises", every = 5, view = [1, 0.7, 1.6], undeformed = "outline",
-    #   window_size = [800, 500], ...}: Render, a PNG of the deformed body (pip install 'hyperfem[render]')
+The keys are declared once, in the :class:`~hyperfem.app.schema.Key` tables of
+:mod:`hyperfem.app.sections`, which check them; ``hyperfem schema`` prints the
+reference generated from those tables (:func:`hyperfem.app.reference.reference`:
+a commented case file with every key, its type, range or choices, default and
+help; the other ``type``/``law`` variants commented out), and ``hyperfem schema
+--json`` a JSON Schema for editors (:func:`hyperfem.app.reference.json_schema`).
 
 Validation happens before anything is computed (:func:`load_case`): TOML
 syntax errors with line and column, unknown keys with a did-you-mean, wrong

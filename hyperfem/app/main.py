@@ -146,12 +146,16 @@ def _add_check_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _add_schema_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``hyperfem schema``: print the keys of a case file."""
-    sub.add_parser(
+    """Add ``hyperfem schema``: print the keys of a case file (a commented case file, or a JSON Schema)."""
+    s = sub.add_parser(
         "schema",
         help="print the keys of a case file",
-        description="Print every section and key of a TOML case file, with the class each maps onto.",
+        description="Print every section and key of a TOML case file as a commented case file (a valid one): type, "
+        "range or choices, default, and the class or keyword each feeds.",
+        epilog="For editors: hyperfem schema --json > hyperfem-case.schema.json, then '#:schema "
+        "./hyperfem-case.schema.json' as the first line of a case file (taplo, VS Code 'Even Better TOML').",
     )
+    s.add_argument("--json", action="store_true", help="print a JSON Schema (draft 2020-12) of case files instead")
 
 
 def _add_demo_parser(sub: argparse._SubParsersAction) -> None:
@@ -391,12 +395,9 @@ def _check(args) -> None:
 
 
 def _schema(args) -> None:
-    from hyperfem.app import casefile
+    from hyperfem.app.reference import dumps, json_schema, reference
 
-    doc = casefile.__doc__
-    start = doc.index(".. code-block:: toml") + len(".. code-block:: toml")
-    block = doc[start : doc.index("\nValidation happens")].strip("\n")
-    _say("\n".join(line[4:] for line in block.splitlines()))
+    _say(dumps(json_schema()) if getattr(args, "json", False) else reference().rstrip("\n"))
 
 
 def _demo(args) -> None:
