@@ -52,7 +52,7 @@ $(STAMP): pyproject.toml Makefile
 	"$(PY)" -m pip install -q --upgrade pip >/dev/null; \
 	if "$(PY)" -c "$$has_dolfinx" >/dev/null 2>&1 && ! "$(PY)" -c 'import sys, dolfinx; sys.exit(0 if dolfinx.__file__.startswith(sys.prefix) else 1)' 2>/dev/null; then \
 	  extras=""; \
-	  for m in gmsh meshio pytest matplotlib; do "$(PY)" -c "import $$m" >/dev/null 2>&1 || extras="$$extras $$m"; done; \
+	  for m in gmsh meshio pytest matplotlib jsonschema; do "$(PY)" -c "import $$m" >/dev/null 2>&1 || extras="$$extras $$m"; done; \
 	  [ -z "$$extras" ] || "$(PY)" -m pip install -q $$extras; \
 	  "$(PY)" -m pip install -q --no-deps -e . >"$(VENV)/bootstrap.log" 2>&1 || { cat "$(VENV)/bootstrap.log"; exit 1; }; \
 	else \
