@@ -59,6 +59,25 @@ def test_validation_sits_at_the_bottom():
     assert modules == {"hyperfem.errors"}
 
 
+def _imports_io(module: str, names: list[str]) -> bool:
+    return module == "hyperfem.io" or module.startswith("hyperfem.io.") or (module == "hyperfem" and "io" in names)
+
+
+def test_solver_does_not_import_io():
+    """solver/ sits below the output layer: its inversion measure comes from ``hyperfem.problem.inversion``.
+
+    ``QuadratureMinimum`` lived in ``hyperfem.io.probes``, so the Newton solver
+    and its step filters imported the input/output package.
+    """
+    offending = [
+        (path.name, module)
+        for path in sorted((PACKAGE / "solver").glob("*.py"))
+        for module, names in _hyperfem_imports(path)
+        if _imports_io(module, names)
+    ]
+    assert offending == []
+
+
 def test_plots_import_no_private_name():
     """plots.py takes the public ``flatten_row`` (it imported ``outputs._flatten``)."""
     private = [(m, n) for m, names in _hyperfem_imports(PACKAGE / "simulation" / "plots.py") for n in names

@@ -1,24 +1,21 @@
-"""Evaluation of finite-element quantities in parallel: at points, and minima over quadrature points.
+"""Point probes: finite-element functions evaluated at fixed reference points, in parallel.
 
-* :class:`PointProbe` — a function at fixed reference points. Each point is
-  evaluated on the lowest rank that owns a cell containing it; the values are
-  summed over ranks so every rank gets the result.
-* :class:`QuadratureMinimum` — the smallest value of a scalar expression over
-  the quadrature points of the owned cells (e.g. :math:`\\min J`, the
-  inversion measure of the solver and of the dynamics diagnostics), and how
-  many cells fall below a threshold.
+:class:`PointProbe` evaluates each point on the lowest rank that owns a cell
+containing it; the values are summed over ranks so every rank gets the
+result. (The minimum over quadrature points, :math:`\\min J`, is a measure of
+the state: :class:`hyperfem.problem.inversion.QuadratureMinimum`.)
 """
 
 from __future__ import annotations
 
 import numpy as np
-import ufl
 from dolfinx import fem, geometry
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
+from hyperfem.problem.inversion import QuadratureMinimum  # noqa: F401  (transitional: dynamics/ imports it from here)
 
-__all__ = ["PointProbe", "QuadratureMinimum"]
+__all__ = ["PointProbe"]
 
 
 class PointProbe:
@@ -77,37 +74,3 @@ class PointProbe:
         if len(self._mine):
             values[self._mine] = u.eval(self.points[self._mine], self._cells).reshape(len(self._mine), size)
         return self.mesh.comm.allreduce(values, op=MPI.SUM)
-
-
-class QuadratureMinimum:
-    """The minimum of a scalar UFL expression over the quadrature points of the mesh (compiled once).
-
-    Args:
-        mesh: The mesh.
-        expr: Scalar UFL expression (e.g. :math:`J = \\det F`).
-        points: Reference quadrature points (e.g. ``problem.quadrature_points()``).
-    """
-
-    def __init__(self, mesh, expr: ufl.core.expr.Expr, points: np.ndarray):
-        self.mesh = mesh
-        self._expr = fem.Expression(expr, points)
-        tdim = mesh.topology.dim
-        self._cells = np.arange(mesh.topology.index_map(tdim).size_local, dtype=np.int32)
-
-    def _per_cell(self) -> np.ndarray:
-        values = self._expr.eval(self.mesh, self._cells)
-        return values.reshape(len(self._cells), -1).min(axis=1) if values.size else np.zeros(0)
-
-    def __call__(self) -> float:
-        """The global minimum (every rank gets it; ``inf`` on an empty mesh)."""
-        per_cell = self._per_cell()
-        local = float(per_cell.min()) if per_cell.size else np.inf
-        return self.mesh.comm.allreduce(local, op=MPI.MIN)
-
-    def with_count(self, threshold: float = 0.0) -> tuple[float, int]:
-        """``(global minimum, number of cells with a value <= threshold at some quadrature point)``."""
-        per_cell = self._per_cell()
-        local_min = float(per_cell.min()) if per_cell.size else np.inf
-        local_count = int((per_cell <= threshold).sum())
-        comm = self.mesh.comm
-        return comm.allreduce(local_min, op=MPI.MIN), comm.allreduce(local_count, op=MPI.SUM)

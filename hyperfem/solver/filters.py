@@ -41,7 +41,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
-from hyperfem.io.probes import QuadratureMinimum
+from hyperfem.problem.inversion import QuadratureMinimum
 from hyperfem.problem.protocol import InvertibleProblem, SolidProblem
 from hyperfem.solver.state import assign_state
 from hyperfem.solver.step_filter import StepFilter, exact_filter_applies

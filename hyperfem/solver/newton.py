@@ -56,7 +56,7 @@ import dolfinx.fem.petsc as fpetsc
 from dolfinx import fem
 
 from hyperfem.errors import ConvergenceError, ParameterError, SolverError
-from hyperfem.io.probes import QuadratureMinimum
+from hyperfem.problem.inversion import QuadratureMinimum
 from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
 from hyperfem.solver.filters import (
@@ -193,8 +193,9 @@ class NewtonSolver:
             line-search step is halved until it holds. ``None`` disables the
             guard. ``"auto"``: ``None`` when the problem says its material is
             ``invertible`` (finite energy for :math:`J \\le 0`: robust and stable
-            Neo-Hookean, corotated, linear — seed 004: invertible models need
-            no line-search filtering), else :data:`DEFAULT_MIN_JACOBIAN`.
+            Neo-Hookean, fixed-corotated, ARAP, linear and corotational linear —
+            seed 004: invertible models need no line-search filtering), else
+            :data:`DEFAULT_MIN_JACOBIAN`.
         step_filter: How the guard shortens a Newton step. ``"exact"``: the
             inversion-free filter of seed 004
             (:class:`~hyperfem.solver.filters.ExactInversionFilter`): the largest step

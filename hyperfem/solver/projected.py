@@ -213,7 +213,7 @@ def _material_integrals(problem: SolidProblem, where: str) -> list:
 
     Integrals of ``problem.energy_internal`` and of its ``tangent_correction``
     (the pseudo-energy whose second variation the problem adds to its
-    tangent, e.g. the polar-rotation term of corotated energies) on the same
+    tangent, e.g. the polar-rotation term of fixed-corotated energies) on the same
     measure (region, rule) are summed into one, so each region gets one
     material tangent.
     """
