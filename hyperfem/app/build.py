@@ -21,6 +21,7 @@ case key (``bc[0]: ...``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,6 +50,7 @@ class Built:
     Attributes:
         case: The case.
         domain: The mesh and its named groups.
+        material: The energy of the body: one energy, or region name → energy (``materials`` of the script).
         problem: The problem the solver solves (for a dynamic run: its time step).
         solver: The Newton solver.
         stepping: The load or time stepping.
@@ -60,6 +62,7 @@ class Built:
 
     case: Case
     domain: Domain
+    material: Any
     problem: SolidProblem
     solver: NewtonSolver
     stepping: Any
@@ -109,17 +112,17 @@ def check_dimensions(case: Case, domain) -> None:
         raise CaseFileError(f"{key}: {what} (the mesh {domain.source} has {gdim} displacement components)", case.source)
 
     for bc in case.bcs:
-        if bc.type == "displacement" and bc.components is None and len(bc.value) != gdim:
+        if bc.type == "displacement" and bc.components is None and bc.value is not None and len(bc.value) != gdim:
             fail(f"{bc.key}.value", f"{len(bc.value)} values; give {gdim}, or components = [...] to prescribe fewer")
         if bc.components is not None and max(bc.components) >= gdim:
             fail(f"{bc.key}.components", f"component {max(bc.components)} does not exist")
         if bc.type == "rotation" and gdim != 3:
             fail(bc.key, "a rotation needs a 3D mesh")
     for load in case.loads:
-        if isinstance(load.value, dict):
+        if isinstance(load.value, Mapping):
             if len(load.value["matrix"]) != gdim:
                 fail(f"{load.key}.value.matrix", f"a {len(load.value['matrix'])}x{len(load.value['matrix'])} matrix")
-        elif load.type != "pressure" and len(load.value) != gdim:
+        elif isinstance(load.value, tuple) and len(load.value) != gdim:
             fail(f"{load.key}.value", f"{len(load.value)} components")
     if case.fibres is not None and case.fibres.type == "constant" and len(case.fibres.options["direction"]) != gdim:
         fail("fibres.direction", f"{len(case.fibres.options['direction'])} components")
@@ -191,6 +194,7 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) ->
         if statement.target is not None:
             variables[statement.target] = value
         if statement.target == "domain":
+            assert isinstance(value, Domain)
             check_mesh(case, value, echo=echo)
             if echo:
                 cells = value.mesh.topology.index_map(value.tdim).size_global
@@ -198,7 +202,8 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) ->
                 say(f"{case.name} ({case.source}): {kind}, {comm.size} rank(s); mesh {value.source}: {cells} cells",
                     comm)
     names = ("domain", "problem", "solver", "stepping", "outputs", "simulation")
-    return Built(case, **{n: variables[n] for n in names}, variables=variables)
+    material = variables["materials"] if "materials" in variables else variables["material"]
+    return Built(case, material=material, **{n: variables[n] for n in names}, variables=variables)
 
 
 def build_domain(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:

@@ -28,6 +28,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
+from typing import Any
 
 __all__ = ["Attr", "Call", "Energy", "Join", "Ref", "evaluate", "imports", "literal", "public_name", "source"]
 
@@ -90,17 +91,19 @@ def evaluate(node: object, variables: Mapping[str, object]) -> object:
     if isinstance(node, Ref):
         return variables[node.name]
     if isinstance(node, Call):
-        function = node.function if _is_named(node.function) else evaluate(node.function, variables)
+        function: Any = node.function if _is_named(node.function) else evaluate(node.function, variables)
         args = [evaluate(a, variables) for a in node.args]
         kwargs = {k: evaluate(v, variables) for k, v in node.kwargs.items()}
         return function(*args, **kwargs)
     if isinstance(node, Attr):
         return getattr(evaluate(node.value, variables), node.name)
     if isinstance(node, Join):
-        return evaluate(node.folder, variables) / node.name
+        folder = evaluate(node.folder, variables)
+        assert isinstance(folder, Path)
+        return folder / node.name
     if isinstance(node, Energy):
-        law, args = node.law, tuple(evaluate(a, variables) for a in node.args)
-        return lambda F: law(F, *args)
+        law, bound = node.law, tuple(evaluate(a, variables) for a in node.args)
+        return lambda F: law(F, *bound)
     if isinstance(node, tuple):
         return tuple(evaluate(v, variables) for v in node)
     if isinstance(node, list):
@@ -127,14 +130,14 @@ def _is_named(value: object) -> bool:
     return (inspect.isroutine(value) or inspect.isclass(value)) and hasattr(value, "__qualname__")
 
 
-def _owner(value: object) -> tuple[object, str]:
+def _owner(value: Any) -> tuple[object, str]:
     """The module-level object ``value`` belongs to (itself, or the class of a method) and its dotted tail."""
     head, _, tail = value.__qualname__.partition(".")
     module = sys.modules[value.__module__]
     return getattr(module, head), tail
 
 
-def public_name(value: object) -> tuple[str, str]:
+def public_name(value: Any) -> tuple[str, str]:
     """``(source, import line)`` of a library function or class: the public path it is exported under.
 
     ``hyperfem.problem.boundary_conditions.Clamp`` is ``("hf.Clamp", "import hyperfem as hf")``;
@@ -191,7 +194,7 @@ def _call_source(function: str, parts: Sequence[str]) -> str:
 
 
 def source(node: object) -> str:
-    """Python source of ``node`` (functions by :func:`public_name`); over :data:`LINE` characters, one argument per line."""
+    """Python source of ``node``, functions named by :func:`public_name`; long calls one argument per line."""
     if isinstance(node, Ref):
         return node.name
     if isinstance(node, Call):

@@ -352,7 +352,8 @@ def _run(args) -> dict | None:
     for name, reaction in summary.get("reactions", {}).items():
         about = f" about the {reaction['about']}" if reaction.get("about") else ""
         lines.append(
-            f"  reaction on {name}: force {_vector(reaction['force'])} N, moment {_vector(reaction['moment'])} N m{about}"
+            f"  reaction on {name}: force {_vector(reaction['force'])} N, "
+            f"moment {_vector(reaction['moment'])} N m{about}"
         )
     _say("\n".join(lines))
     return summary

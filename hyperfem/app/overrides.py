@@ -6,6 +6,7 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from hyperfem.app.schema import CaseFileError
 
@@ -66,7 +67,7 @@ def apply_overrides(data: dict, overrides: Sequence[str], source: str | Path | N
         if not parts or not isinstance(parts[0], str):
             raise CaseFileError(f"--set {item!r}: the key must start with a name", source)
         value = _parse_value(text, source)
-        node: object = data
+        node: Any = data
         for i, part in enumerate(parts):
             last = i == len(parts) - 1
             here = ".".join(str(p) for p in parts[: i + 1])

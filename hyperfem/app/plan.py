@@ -198,9 +198,11 @@ def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> l
     params, material = f"params{suffix}", f"material{suffix}"
     if m.law in LAME_LAWS:
         return _lame_material(m, params, material, case.mixed)
-    kwargs = dict(m.parameters)
+    kwargs: dict[str, object] = dict(m.parameters)
     if m.volumetric:
         kwargs["volumetric"] = m.volumetric
+    iso: Energy
+    whole: Call | Energy
     if m.law == "mooney_rivlin":
         out = [Statement(m.key, params, Call.of(MooneyRivlinParameters, **kwargs))]
         iso = Energy(mooney_rivlin_isochoric, (Attr(Ref(params), "c1"), Attr(Ref(params), "c2")))
@@ -343,6 +345,7 @@ def _fibres(case: Case) -> list[Statement]:
 
 def _fibre_file(case: Case) -> Path:
     """The fibre file of ``[fibres] file`` (absolute)."""
+    assert case.fibres is not None
     path = Path(case.fibres.options["file"]).expanduser()
     return path if path.is_absolute() else (case.source.parent / path).resolve()
 
@@ -491,7 +494,7 @@ def _outputs(case: Case, materials: _Materials) -> Statement:
     if o.csv:
         items.append(("output.csv", Call.of(CSVLog, Join(out, f"{name}.csv"))))
     if o.summary:
-        kw = {"rows": False} if o.csv else {}  # the rows are in the CSV
+        kw: dict[str, object] = {"rows": False} if o.csv else {}  # the rows are in the CSV
         items.append(("output.summary", Call.of(JSONSummary, Join(out, f"{name}.json"), **kw)))
     if o.convergence:
         items.append(("output.convergence", Call.of(ConvergenceLog, Join(out, f"{name}_convergence.jsonl"))))

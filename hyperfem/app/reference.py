@@ -299,6 +299,8 @@ def toml_value(value: object) -> str:
 
 
 def _interval(key: Key) -> str:
+    low: tuple[str, float, str] | None
+    high: tuple[str, float, str] | None
     low = (f"> {key.above:g}", key.above, "(") if key.above is not None else None
     if key.minimum is not None:
         low = (f">= {key.minimum:g}", key.minimum, "[")
@@ -307,7 +309,8 @@ def _interval(key: Key) -> str:
         high = (f"<= {key.maximum:g}", key.maximum, "]")
     if low and high:
         return f" in {low[2]}{low[1]:g}, {high[1]:g}{high[2]}"
-    return f" {(low or high)[0]}" if low or high else ""
+    bound = low or high
+    return f" {bound[0]}" if bound else ""
 
 
 def type_text(key: Key) -> str:
@@ -393,6 +396,7 @@ class _Writer:
             self.keys(table.keys, active, on)
             self.subtables(table, on)
             return
+        assert table.on is not None  # a table with variants names its selector
         for i, (values, own) in enumerate(table.variants):
             first = i == 0
             live = on and first
@@ -566,6 +570,7 @@ def _table_json(table: Table) -> dict:
     and, per variant, ``if`` the selector has its value ``then`` exactly its keys."""
     if not table.variants:
         return _closed(table, table.keys, RULES.get(table.path, ()))
+    assert table.on is not None  # a table with variants names its selector
     selector = table.keys[table.on]
     default = selector.default
     union: dict[str, dict] = {}
@@ -594,7 +599,7 @@ def _table_json(table: Table) -> dict:
 def _array(name: str, key: Key) -> dict:
     """``[[x]]``: an array of tables (one table written as ``[x]`` is read as one entry)."""
     entry = {"$ref": f"#/$defs/{name}"}
-    out = {"type": ["array", "object"], "items": entry, "if": {"type": "object"}, "then": entry}
+    out: dict[str, object] = {"type": ["array", "object"], "items": entry, "if": {"type": "object"}, "then": entry}
     if key.required:
         out["minItems"] = 1
     return out

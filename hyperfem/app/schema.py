@@ -23,6 +23,7 @@ import numbers
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from hyperfem.errors import ParameterError
 
@@ -146,7 +147,7 @@ def _is_number(value: object) -> bool:
 def _number(value: object, key: Key, where: str) -> float:
     if not _is_number(value):
         raise CaseFileError(f"{where}: expected a number, got {describe(value)}")
-    x = float(value)
+    x = float(value)  # type: ignore[arg-type]  # a numbers.Real (checked above)
     if not math.isfinite(x):
         raise CaseFileError(f"{where}: must be a finite number, got {value!r}")
     if key.above is not None and not x > key.above:
@@ -169,7 +170,7 @@ def _vector(value: object, key: Key, where: str, length: int | None) -> tuple[fl
     return tuple(_number(v, plain, f"{where}[{i}]") for i, v in enumerate(value))
 
 
-def check_value(value: object, key: Key, where: str) -> object:
+def check_value(value: object, key: Key, where: str) -> Any:
     """Check one value against its declaration; returns it converted (floats, tuples).
 
     Raises:
@@ -225,7 +226,7 @@ def check_value(value: object, key: Key, where: str) -> object:
 
 def check_table(
     table: Mapping[str, object], keys: Mapping[str, Key], where: str, *, what: str | None = None
-) -> dict[str, object]:
+) -> dict[str, Any]:
     """Check a table: no unknown keys, every required key present, every value valid.
 
     Args:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Sequence
+from typing import Any
 from pathlib import Path
 
 from hyperfem.app.schema import CaseFileError, Key, check_table, check_value, describe, join, suggestion
@@ -625,7 +626,7 @@ def check_bcs(entries: Sequence[Mapping]) -> tuple[BCSpec, ...]:
     return bcs
 
 
-def _load_value(value: object, kind: str, where: str) -> object:
+def _load_value(value: object, kind: str, where: str) -> Any:
     if kind == "pressure":
         return value
     if isinstance(value, Mapping):
@@ -684,9 +685,9 @@ def check_stepping(table: Mapping) -> SteppingSpec:
         )
     values = check_table(table, DYNAMIC, "stepping", what="dynamic stepping")
     scheme = values.get("scheme", "newmark")
-    own = {"newmark": ("beta", "gamma"), "generalized_alpha": ("rho_inf",)}.get(scheme, ())
+    scheme_keys: tuple[str, ...] = {"newmark": ("beta", "gamma"), "generalized_alpha": ("rho_inf",)}.get(scheme, ())
     for name in ("beta", "gamma", "rho_inf"):
-        if name in values and name not in own:
+        if name in values and name not in scheme_keys:
             raise CaseFileError(f"stepping.{name}: not a parameter of scheme {scheme!r}")
     if "rho_inf" in values and values["rho_inf"] > 1.0:
         raise CaseFileError(f"stepping.rho_inf: must lie in [0, 1], got {values['rho_inf']!r}")
@@ -696,7 +697,7 @@ def check_stepping(table: Mapping) -> SteppingSpec:
         type=kind,
         options={k: v for k, v in values.items() if k not in skip},
         scheme=scheme,
-        scheme_options={k: values[k] for k in own if k in values},
+        scheme_options={k: values[k] for k in scheme_keys if k in values},
         lumped_mass=values.get("lumped_mass", False),
         damping=damping,
         initial_acceleration=values.get("initial_acceleration", True),
@@ -719,7 +720,7 @@ def check_solver(table: Mapping) -> SolverSpec:
             if option in petsc:
                 raise CaseFileError(f"solver.{sugar}: also given as solver.petsc_options.{option}; give it once")
             petsc[option] = values[sugar]
-    options = {k: values[k] for k in ("step_filter", "predictor") if k in values}
+    options: dict[str, object] = {k: values[k] for k in ("step_filter", "predictor") if k in values}
     if "min_jacobian" in values:
         mj = values["min_jacobian"]
         if mj is False:
@@ -744,7 +745,7 @@ def check_output(
     values = check_table(table, OUTPUT, "output")
     if "times" in values and "every" in values:
         raise CaseFileError("output.every: give either times or every, not both")
-    end = stepping.options.get("t_end") if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
+    end = float(stepping.options["t_end"]) if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
     times = values.get("times")
     if times is not None:
         _check_output_times(times, end, stepping.dynamic)

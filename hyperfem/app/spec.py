@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "LAME_LAWS",
@@ -70,7 +71,7 @@ class Profile:
     """
 
     kind: str
-    args: Mapping[str, object] = field(default_factory=dict)
+    args: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def kinks(self) -> tuple[float, ...]:
@@ -147,7 +148,7 @@ class FibreSpec:
     """
 
     type: str
-    options: Mapping[str, object] = field(default_factory=dict)
+    options: Mapping[str, Any] = field(default_factory=dict)
     representation: str = "DG0"
 
 
@@ -188,7 +189,7 @@ class LoadSpec:
     type: str
     boundary: str | None = None
     region: str | None = None
-    value: object = None
+    value: tuple[float, ...] | float | Mapping[str, Any] | None = None
     profile: Profile | None = None
 
 
@@ -210,7 +211,7 @@ class SteppingSpec:
     """
 
     type: str = "quasi-static"
-    options: Mapping[str, object] = field(default_factory=dict)
+    options: Mapping[str, Any] = field(default_factory=dict)
     end: float | None = None
     solve_initial: bool = False
     scheme: str = "newmark"
@@ -253,7 +254,7 @@ class RenderSpec:
     @property
     def scalars(self) -> str:
         """What colours the surface (default ``"displacement"``)."""
-        return dict(self.options).get("scalars", "displacement")
+        return str(dict(self.options).get("scalars", "displacement"))
 
 
 @dataclass(frozen=True)
