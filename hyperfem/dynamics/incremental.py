@@ -191,67 +191,100 @@ class IncrementalProblem:
         if integrator.dynamic and density is None:
             raise ParameterError("IncrementalProblem: a dynamic scheme needs a MassDensity")
         self.density = density
-        block = DisplacementBlock(base)
-        self.displacement_block = block
+        self.displacement_block = DisplacementBlock(base)
         mesh = self.domain.mesh
-        V = self.V
-        u = self.u
-        disp = base.displacement
-        self.v = fem.Function(V, name="velocity")
-        self.a = fem.Function(V, name="acceleration")
-        self._u_n = fem.Function(V)
-        self._u_tilde = fem.Function(V)
-        self._u_hat = fem.Function(V)
+        self.v = fem.Function(self.V, name="velocity")
+        self.a = fem.Function(self.V, name="acceleration")
+        self._u_n = fem.Function(self.V)
+        self._u_tilde = fem.Function(self.V)
+        self._u_hat = fem.Function(self.V)
         self._A = fem.Constant(mesh, 0.0)
         self._B = fem.Constant(mesh, 0.0)
-        degree = base.degree
 
-        af = float(integrator.alpha_f)
-        if af:
-            if block.whole:
-                u_alpha = (1.0 - af) * u + af * self._u_n
-            else:
-                u_alpha = u + af * block.mask(self._u_n - u)
-            scale = 1.0 / (1.0 - af)
-            internal = scale * ufl.replace(base.energy_internal, {u: u_alpha})
-            external = scale * ufl.replace(base.energy_external, {u: u_alpha})
-            follower = None if base.follower_residual is None else ufl.replace(base.follower_residual, {u: u_alpha})
-        else:
-            internal, external, follower = base.energy_internal, base.energy_external, base.follower_residual
-
+        alpha = self._alpha_state()
+        internal = self._at_alpha(base.energy_internal, alpha)
+        external = self._at_alpha(base.energy_external, alpha)
+        follower = self._at_alpha(base.follower_residual, alpha, scaled=False)
         if integrator.dynamic:
-            du = disp(u) - disp(self._u_tilde)
-            internal = internal + 0.5 * self._A * density.integral(ufl.dot(du, du), self.domain, degree)
-            if self.damping is not None:
-                dv = disp(u) - disp(self._u_hat)
-                if self.damping.alpha:
-                    internal = internal + 0.5 * self.damping.alpha * self._B * density.integral(
-                        ufl.dot(dv, dv), self.domain, degree
-                    )
-                if self.damping.beta:
-                    dw = block.embed(dv)
-                    internal = internal + 0.5 * self.damping.beta * self._B * reference_stiffness_form(
-                        base.energy_internal, u, dw, dw
-                    )
-        md = None
-        if density is not None and density.lumped and base.domain.mesh.topology.cell_type.name not in (
-            "interval", "triangle", "tetrahedron"
-        ):
-            # The lumped rule is the vertex rule, and every cell integral joins it (FFCx needs one rule per
-            # kernel): on hexahedra the elastic energy would be integrated at the corners only.
-            raise ParameterError(
-                f"{type(self).__name__}: lumped mass on {base.domain.mesh.topology.cell_type.name} cells would "
-                "integrate the elastic energy on the vertex rule; use MassDensity(rho) (consistent) here"
-            )
-        if density is not None:
-            md = density.metadata(degree)
-            if not density.lumped:
-                md = {"quadrature_degree": max(md["quadrature_degree"], base.quadrature_degree)}
+            internal = self._add_inertia_and_damping(internal)
+        md = self._step_rule()
+        if md is not None:
             internal = unify_cell_quadrature(internal, md)
             external = unify_cell_quadrature(external, md)
             if follower is not None:
                 follower = unify_cell_quadrature(follower, md)
         self._unified_md = md
+        self._derive_step_forms(internal, external, follower, alpha, md)
+        self._compile_diagnostics()
+
+    def _alpha_state(self) -> tuple[Expr, float] | None:
+        r"""``(w_alpha, 1/(1 - alpha_f))`` of generalized-:math:`\alpha`, or ``None`` when :math:`\alpha_f = 0`.
+
+        Only the displacement block is weighted: :math:`u_\alpha = (1-\alpha_f)u + \alpha_f u_n`.
+        """
+        af = float(self.integrator.alpha_f)
+        if not af:
+            return None
+        u, block = self.u, self.displacement_block
+        if block.whole:
+            u_alpha = (1.0 - af) * u + af * self._u_n
+        else:
+            u_alpha = u + af * block.mask(self._u_n - u)
+        return u_alpha, 1.0 / (1.0 - af)
+
+    def _at_alpha(self, form, alpha: tuple[Expr, float] | None, *, scaled: bool = True):
+        r"""``form`` at :math:`w_\alpha`, times :math:`1/(1-\alpha_f)` when ``scaled`` (``None`` stays ``None``)."""
+        if alpha is None or form is None:
+            return form
+        u_alpha, scale = alpha
+        replaced = ufl.replace(form, {self.u: u_alpha})
+        return scale * replaced if scaled else replaced
+
+    def _add_inertia_and_damping(self, internal):
+        r"""``internal`` plus the inertia term :math:`\frac{A}{2}\int\rho|u - \tilde u|^2` and the Rayleigh terms."""
+        base, block, density, degree = self.base, self.displacement_block, self.density, self.base.degree
+        disp = base.displacement
+        u = self.u
+        du = disp(u) - disp(self._u_tilde)
+        internal = internal + 0.5 * self._A * density.integral(ufl.dot(du, du), self.domain, degree)
+        if self.damping is not None:
+            dv = disp(u) - disp(self._u_hat)
+            if self.damping.alpha:
+                internal = internal + 0.5 * self.damping.alpha * self._B * density.integral(
+                    ufl.dot(dv, dv), self.domain, degree
+                )
+            if self.damping.beta:
+                dw = block.embed(dv)
+                internal = internal + 0.5 * self.damping.beta * self._B * reference_stiffness_form(
+                    base.energy_internal, u, dw, dw
+                )
+        return internal
+
+    def _step_rule(self) -> dict | None:
+        """The one cell rule of every form of the step: the mass rule (``None`` without a density).
+
+        A consistent mass rule is raised to the base problem's volume rule; a
+        lumped one (the vertex rule) is refused on cells other than simplices.
+        """
+        density, base = self.density, self.base
+        cell = base.domain.mesh.topology.cell_type.name
+        if density is not None and density.lumped and cell not in ("interval", "triangle", "tetrahedron"):
+            # The lumped rule is the vertex rule, and every cell integral joins it (FFCx needs one rule per
+            # kernel): on hexahedra the elastic energy would be integrated at the corners only.
+            raise ParameterError(
+                f"{type(self).__name__}: lumped mass on {cell} cells would "
+                "integrate the elastic energy on the vertex rule; use MassDensity(rho) (consistent) here"
+            )
+        if density is None:
+            return None
+        md = density.metadata(base.degree)
+        if not density.lumped:
+            md = {"quadrature_degree": max(md["quadrature_degree"], base.quadrature_degree)}
+        return md
+
+    def _derive_step_forms(self, internal, external, follower, alpha: tuple[Expr, float] | None, md) -> None:
+        r"""Residual and tangent of :math:`\Pi_\Delta`; the base problem's tangent correction at :math:`w_\alpha`."""
+        base, u, V = self.base, self.u, self.V
         self.energy_internal = internal
         self.energy_external = external
         self.follower_residual = follower
@@ -265,19 +298,21 @@ class IncrementalProblem:
         if correction is not None:
             # Tangent-only term of a material whose stress is exact with a frozen field
             # (fixed-corotated, ARAP: dR/dF); never part of the energy or the residual.
-            if af:
-                correction = scale * ufl.replace(correction, {u: u_alpha})
+            correction = self._at_alpha(correction, alpha)
             if md is not None:
                 correction = unify_cell_quadrature(correction, md)
             self.jacobian = self.jacobian + ufl.derivative(
                 ufl.derivative(correction, u, ufl.TestFunction(V)), u, ufl.TrialFunction(V)
             )
 
-        # Diagnostics forms at the current state.
+    def _compile_diagnostics(self) -> None:
+        """Kinetic, elastic and external energy forms at the current state (for the diagnostics)."""
+        base, density = self.base, self.density
+        disp = base.displacement
         self._kinetic = (
             None
             if density is None
-            else fem.form(0.5 * density.integral(ufl.dot(disp(self.v), disp(self.v)), self.domain, degree))
+            else fem.form(0.5 * density.integral(ufl.dot(disp(self.v), disp(self.v)), self.domain, base.degree))
         )
         self._elastic = fem.form(base.energy_internal)
         self._external = fem.form(base.energy_external)

@@ -563,6 +563,110 @@ def _attempt(stage: Stage, policy: StepPolicy, t: float, sign: float, h: float, 
     return _Attempt(ok, accepted, records, error, reason)
 
 
+@dataclass
+class _Course:
+    """Where a run goes from its start: the direction, the end and the must-hit times in between, in order."""
+
+    end: float
+    sign: float
+    eps: float
+    hits: list[float]
+
+    @classmethod
+    def plan(cls, t0: float, policy: StepPolicy) -> _Course:
+        """The course from ``t0`` to ``policy.end`` (down when the end lies below ``t0``)."""
+        end = float(policy.end)
+        eps = 1e-12 * max(1.0, abs(end))
+        if not end < t0:
+            return cls(end, 1.0, eps, sorted({h for h in policy.must_hit if t0 + eps < h < end - eps} | {end}))
+        hits = sorted({h for h in policy.must_hit if end + eps < h < t0 - eps} | {end}, reverse=True)
+        return cls(end, -1.0, eps, hits)
+
+    def remaining(self, t: float) -> bool:
+        """Whether ``t`` falls short of the end."""
+        return t < self.end - self.eps if self.sign > 0 else t > self.end + self.eps
+
+    def target(self, t: float) -> float:
+        """The next must-hit time (or the end) beyond ``t``."""
+        if self.sign > 0:
+            return next(hit for hit in self.hits if hit > t + self.eps)
+        return next(hit for hit in self.hits if hit < t - self.eps)
+
+
+@dataclass
+class _Control:
+    """The increment control carried from step to step: nominal increment, easy streak, attempts spent."""
+
+    dt: float
+    streak: int
+    attempts: int
+
+
+def _step_length(policy: StepPolicy, dt: float, span: float) -> float:
+    """The first length tried for a step ``span`` short of its target (``landing``: clipped or equal steps)."""
+    if policy.landing == "equal":
+        return span / max(1, math.ceil(span / dt - 1e-6))
+    return min(dt, span)
+
+
+def _grow(policy: StepPolicy, control: _Control, accepted: list[SolveRecord]) -> None:
+    """Count an easy step towards growth; after ``grow_after`` of them the increment grows."""
+    easy = policy.easy_iterations is None or max(r.iterations for r in accepted) <= policy.easy_iterations
+    control.streak = control.streak + 1 if easy else 0
+    if control.streak >= policy.grow_after:
+        control.dt = min(control.dt * policy.growth, policy.max_step)
+        control.streak = 0
+
+
+def _step(
+    stage: Stage, policy: StepPolicy, course: _Course, control: _Control, t: float, history: list[StepRecord]
+) -> StepRecord:
+    """One accepted step from ``t``: attempts cut back until one passes, then the increment control."""
+    start = _time.perf_counter()
+    h = _step_length(policy, control.dt, course.sign * (course.target(t) - t))
+    state = stage.save()
+    solves, rejected = 0, 0
+    failed: list[SolveRecord] = []
+    while True:
+        control.attempts += 1
+        if control.attempts > policy.max_steps:
+            raise ConvergenceError(
+                f"stepping exceeded {policy.max_steps} steps (rejected attempts included) at t = {t:g} "
+                f"of {course.end:g}",
+                t,
+                history,
+            )
+        attempt = _attempt(stage, policy, t, course.sign, h, state)
+        solves += len(attempt.records)
+        if attempt.ok:
+            break
+        failed.extend(attempt.records)
+        stage.restore(state)
+        rejected += 1
+        control.streak = 0
+        h = h * policy.cutback
+        control.dt = h
+        if h < policy.min_step:
+            raise ConvergenceError(
+                f"stepping failed: reached t = {t:g} of {course.end:g}; step {h:g} below the minimum "
+                f"{policy.min_step:g} ({attempt.reason})",
+                t,
+                history,
+            )
+    _grow(policy, control, attempt.accepted)
+    return StepRecord(
+        step=len(history) + 1,
+        time=stage.time,
+        dt=course.sign * h,
+        solve_records=attempt.accepted,
+        failed=failed,
+        solves=solves,
+        rejected=rejected,
+        error=attempt.error,
+        wall_time=_time.perf_counter() - start,
+    )
+
+
 def run_steps(
     stage: Stage,
     policy: StepPolicy,
@@ -590,90 +694,17 @@ def run_steps(
             ``policy.max_steps`` attempts are spent; ``time`` is the last time
             reached and ``history`` the accepted steps.
     """
-    t0 = t = stage.time
-    end = float(policy.end)
-    eps = 1e-12 * max(1.0, abs(end))
-    up = not end < t0
-    sign = 1.0 if up else -1.0
-    if up:
-
-        def remaining(t: float) -> bool:
-            return t < end - eps
-
-        def beyond(hit: float, t: float) -> bool:
-            return hit > t + eps
-
-        hits = sorted({h for h in policy.must_hit if t0 + eps < h < end - eps} | {end})
-    else:
-
-        def remaining(t: float) -> bool:
-            return t > end + eps
-
-        def beyond(hit: float, t: float) -> bool:
-            return hit < t - eps
-
-        hits = sorted({h for h in policy.must_hit if end + eps < h < t0 - eps} | {end}, reverse=True)
-
+    t = stage.time
+    course = _Course.plan(t, policy)
     if not (isinstance(streak, int) and 0 <= streak < policy.grow_after):
         raise ParameterError(f"run_steps: streak must be an integer in [0, grow_after), got {streak!r}")
     if not (isinstance(attempts, int) and attempts >= 0):
         raise ParameterError(f"run_steps: attempts must be an integer >= 0, got {attempts!r}")
-    dt = min(policy.increment, policy.max_step)
+    control = _Control(min(policy.increment, policy.max_step), streak, attempts)
     history: list[StepRecord] = []
-    while remaining(t):
-        start = _time.perf_counter()
-        target = next(hit for hit in hits if beyond(hit, t))
-        span = sign * (target - t)
-        if policy.landing == "equal":
-            h = span / max(1, math.ceil(span / dt - 1e-6))
-        else:
-            h = min(dt, span)
-        state = stage.save()
-        solves, rejected = 0, 0
-        failed: list[SolveRecord] = []
-        while True:
-            attempts += 1
-            if attempts > policy.max_steps:
-                raise ConvergenceError(
-                    f"stepping exceeded {policy.max_steps} steps (rejected attempts included) at t = {t:g} "
-                    f"of {end:g}",
-                    t,
-                    history,
-                )
-            attempt = _attempt(stage, policy, t, sign, h, state)
-            solves += len(attempt.records)
-            if attempt.ok:
-                break
-            failed.extend(attempt.records)
-            stage.restore(state)
-            rejected += 1
-            streak = 0
-            h = h * policy.cutback
-            dt = h
-            if h < policy.min_step:
-                raise ConvergenceError(
-                    f"stepping failed: reached t = {t:g} of {end:g}; step {h:g} below the minimum "
-                    f"{policy.min_step:g} ({attempt.reason})",
-                    t,
-                    history,
-                )
-        easy = policy.easy_iterations is None or max(r.iterations for r in attempt.accepted) <= policy.easy_iterations
-        streak = streak + 1 if easy else 0
-        if streak >= policy.grow_after:
-            dt = min(dt * policy.growth, policy.max_step)
-            streak = 0
-        t = stage.time
-        record = StepRecord(
-            step=len(history) + 1,
-            time=t,
-            dt=sign * h,
-            solve_records=attempt.accepted,
-            failed=failed,
-            solves=solves,
-            rejected=rejected,
-            error=attempt.error,
-            wall_time=_time.perf_counter() - start,
-        )
+    while course.remaining(t):
+        record = _step(stage, policy, course, control, t, history)
+        t = record.time
         history.append(record)
         if on_step is not None:
             on_step(record)
