@@ -12,8 +12,9 @@ the summary:
   :math:`\max_X \big(|(X + u)_\perp| - |X_\perp|\big)` over the displacement nodes.
 
 :class:`CellVTX` writes cell-wise fields (fibre stretch, activation,
-:func:`cauchy_stress`, ...) as a VTX time series (the derived fields of
-:mod:`hyperfem.simulation.fields` build on it). The reaction forces of every
+:func:`cauchy_stress`, ...) as a VTX time series; its interpolation,
+:class:`CellFunctions`, also serves the derived fields of
+:mod:`hyperfem.simulation.fields`. The reaction forces of every
 Dirichlet boundary, with moments, are :class:`~hyperfem.simulation.reactions.Reactions`. All of them work on the
 displacement and the three-field problem (through
 :class:`~hyperfem.simulation.Fields`) and, for a dynamic run, on its base problem.
