@@ -17,7 +17,7 @@ PYTEST_ARGS ?= -q -p no:cacheprovider
 export OMP_NUM_THREADS ?= 1
 export OPENBLAS_NUM_THREADS ?= 1
 
-.PHONY: all bootstrap demo demos test test-serial test-mpi meshes benchmark render clean
+.PHONY: all bootstrap demo demos test test-serial test-mpi lint meshes benchmark render clean
 
 all: test
 
@@ -54,9 +54,10 @@ $(STAMP): pyproject.toml Makefile
 	  extras=""; \
 	  for m in gmsh meshio pytest matplotlib jsonschema; do "$(PY)" -c "import $$m" >/dev/null 2>&1 || extras="$$extras $$m"; done; \
 	  [ -z "$$extras" ] || "$(PY)" -m pip install -q $$extras; \
+	  "$(PY)" -m pip install -q "mypy>=2.4,<2.5" "ruff>=0.17,<0.18"; \
 	  "$(PY)" -m pip install -q --no-deps -e . >"$(VENV)/bootstrap.log" 2>&1 || { cat "$(VENV)/bootstrap.log"; exit 1; }; \
 	else \
-	  "$(PY)" -m pip install -q -e ".[wheel,mesh,test,plot]" >"$(VENV)/bootstrap.log" 2>&1 || { cat "$(VENV)/bootstrap.log"; exit 1; }; \
+	  "$(PY)" -m pip install -q -e ".[wheel,mesh,test,plot,lint]" >"$(VENV)/bootstrap.log" 2>&1 || { cat "$(VENV)/bootstrap.log"; exit 1; }; \
 	fi; \
 	"$(PY)" -c "$$has_dolfinx" || { echo "bootstrap: error: DOLFINx >= 0.10 not importable in $(VENV)" >&2; exit 1; }; \
 	touch "$(STAMP)"; \
@@ -80,6 +81,11 @@ demos: bootstrap
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
 	$(MPIEXEC) -n $(NP) $(PY) -m pytest $(PYTEST_ARGS)
+
+# ruff (style, bugs) and mypy (the library's types, [tool.mypy] in pyproject.toml); CI runs it after the tests.
+lint: bootstrap
+	$(PY) -m ruff check hyperfem tests demos benchmarks docs
+	$(PY) -m mypy
 
 test-serial: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
