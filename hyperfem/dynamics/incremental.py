@@ -204,7 +204,9 @@ class IncrementalProblem:
         alpha = self._alpha_state()
         internal = self._at_alpha(base.energy_internal, alpha)
         external = self._at_alpha(base.energy_external, alpha)
-        follower = self._at_alpha(base.follower_residual, alpha, scaled=False)
+        follower = base.follower_residual
+        if follower is not None:
+            follower = self._at_alpha(follower, alpha, scaled=False)
         if integrator.dynamic:
             internal = self._add_inertia_and_damping(internal)
         md = self._step_rule()
@@ -232,17 +234,18 @@ class IncrementalProblem:
             u_alpha = u + af * block.mask(self._u_n - u)
         return u_alpha, 1.0 / (1.0 - af)
 
-    def _at_alpha(self, form, alpha: tuple[Expr, float] | None, *, scaled: bool = True):
-        r"""``form`` at :math:`w_\alpha`, times :math:`1/(1-\alpha_f)` when ``scaled`` (``None`` stays ``None``)."""
-        if alpha is None or form is None:
+    def _at_alpha(self, form: ufl.Form, alpha: tuple[Expr, float] | None, *, scaled: bool = True) -> ufl.Form:
+        r"""``form`` at :math:`w_\alpha`, times :math:`1/(1-\alpha_f)` when ``scaled``."""
+        if alpha is None:
             return form
         u_alpha, scale = alpha
         replaced = ufl.replace(form, {self.u: u_alpha})
         return scale * replaced if scaled else replaced
 
-    def _add_inertia_and_damping(self, internal):
+    def _add_inertia_and_damping(self, internal: ufl.Form) -> ufl.Form:
         r"""``internal`` plus the inertia term :math:`\frac{A}{2}\int\rho|u - \tilde u|^2` and the Rayleigh terms."""
         base, block, density, degree = self.base, self.displacement_block, self.density, self.base.degree
+        assert density is not None  # a dynamic scheme has one (checked by __init__)
         disp = base.displacement
         u = self.u
         du = disp(u) - disp(self._u_tilde)
@@ -282,7 +285,14 @@ class IncrementalProblem:
             md = {"quadrature_degree": max(md["quadrature_degree"], base.quadrature_degree)}
         return md
 
-    def _derive_step_forms(self, internal, external, follower, alpha: tuple[Expr, float] | None, md) -> None:
+    def _derive_step_forms(
+        self,
+        internal: ufl.Form,
+        external: ufl.Form,
+        follower: ufl.Form | None,
+        alpha: tuple[Expr, float] | None,
+        md: dict | None,
+    ) -> None:
         r"""Residual and tangent of :math:`\Pi_\Delta`; the base problem's tangent correction at :math:`w_\alpha`."""
         base, u, V = self.base, self.u, self.V
         self.energy_internal = internal
