@@ -64,7 +64,7 @@ def test_projected_newton_smoke():
     rows = [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
     assert len(rows) == 4 and all(r["converged"] for r in rows)
     d0 = rows[0]["test_point_displacement"]
-    assert all(max(abs(a - b) for a, b in zip(r["test_point_displacement"], d0)) < 1e-6 for r in rows)
+    assert all(max(abs(a - b) for a, b in zip(r["test_point_displacement"], d0, strict=True)) < 1e-6 for r in rows)
 
 
 @pytest.mark.serial

@@ -349,7 +349,7 @@ def test_restart_refuses_what_does_not_match(folder, comm):
     meta = read_meta(ckpt, comm)
     step = Path(meta["path"])
     if comm.rank == 0:
-        (step / "rank-0000-of-{:04d}.npz".format(comm.size)).rename(step / "moved.npz")
+        (step / f"rank-0000-of-{comm.size:04d}.npz").rename(step / "moved.npz")
     comm.Barrier()
     with pytest.raises(CheckpointError, match=r"incomplete checkpoint \(missing rank-0000|no rank files"):
         _ramp(comm, folder / "other").run(restart=ckpt)

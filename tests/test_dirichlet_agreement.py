@@ -12,7 +12,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -103,7 +102,9 @@ def test_callable_values_are_exact_on_every_boundary_dof_and_its_ghosts(comm, n)
     from mpi4py import MPI
 
     mesh = dmesh.create_unit_cube(MPI.COMM_WORLD, n, n, n)
-    domain = hf.Domain.from_locators(mesh, {"x0": lambda x: np.isclose(x[0], 0.0), "x1": lambda x: np.isclose(x[0], 1.0)})
+    domain = hf.Domain.from_locators(
+        mesh, {"x0": lambda x: np.isclose(x[0], 0.0), "x1": lambda x: np.isclose(x[0], 1.0)}
+    )
     shear = lambda x: np.vstack([0.1 * x[1], 0.1 * x[2], 0.0 * x[0]])  # noqa: E731
     rotating = lambda x, s: np.vstack([0.0 * x[0], -s * x[2], s * x[1]])  # noqa: E731
     for value, at in ((shear, 1.0), (rotating, 0.5)):

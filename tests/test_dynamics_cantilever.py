@@ -99,7 +99,8 @@ SHORT_WINDOW = {
 @pytest.mark.parametrize("case", CASES)
 def test_demo_case_short_window(case, outdir, comm):
     """Two adaptive steps of 0.02 s (two half steps each) of every case on the coarse beam."""
-    args = ["--case", case, "--t-end", "0.04", "--dt", "0.02", "--mesh", str(BEAM_H2), "--quiet", "--output", str(outdir)]
+    args = ["--case", case, "--t-end", "0.04", "--dt", "0.02", "--mesh", str(BEAM_H2), "--quiet"]
+    args += ["--output", str(outdir)]
     if case != "bend":
         args.append("--no-vtx")  # one case exercises the VTX writer
     summary = _demo().main(args)

@@ -640,7 +640,8 @@ def test_a_mesh_of_another_format_points_to_convert(shared_dir):
     if MPI.COMM_WORLD.rank == 0:
         path.write_text('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid"></VTKFile>\n')
     MPI.COMM_WORLD.Barrier()
-    with pytest.raises(MeshError, match=r"not a gmsh \.msh file; convert it with `hyperfem convert beam\.vtu beam\.msh`"):
+    message = r"not a gmsh \.msh file; convert it with `hyperfem convert beam\.vtu beam\.msh`"
+    with pytest.raises(MeshError, match=message):
         hf.read_mesh(path)
 
 

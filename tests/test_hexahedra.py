@@ -252,7 +252,8 @@ def test_a_simulation_runs_on_hexahedra(tmp_path):
     """The run layer took the simplex quality measures and refused hexahedral meshes."""
     from hyperfem.simulation import Probe, Simulation
 
-    mesh = dmesh.create_box(MPI.COMM_WORLD, [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]], [10, 4, 4], dmesh.CellType.hexahedron)
+    box = [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]]
+    mesh = dmesh.create_box(MPI.COMM_WORLD, box, [10, 4, 4], dmesh.CellType.hexahedron)
     domain = hf.Domain.from_locators(
         mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
     )

@@ -7,7 +7,7 @@ quantity is a known matrix function of ``F = I + A``.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -60,7 +60,7 @@ class _Kinematics:
         return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def kinematics(dim: int) -> _Kinematics:
     return _Kinematics(dim)
 

@@ -156,7 +156,8 @@ MU, BULK = 3.0e5, 1.0e9 / 3.0  # nearly incompressible: K / mu ~ 1e3
 
 
 def _mixed_beam(loads=(), bcs=None):
-    mesh = dmesh.create_box(MPI.COMM_WORLD, [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]], [4, 2, 2], dmesh.CellType.tetrahedron)
+    box = [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]]
+    mesh = dmesh.create_box(MPI.COMM_WORLD, box, [4, 2, 2], dmesh.CellType.tetrahedron)
     domain = hf.Domain.from_locators(
         mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
     )

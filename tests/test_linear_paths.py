@@ -131,7 +131,8 @@ def test_high_degrees_keep_lu_to_larger_sizes():
         box = dmesh.create_box(MPI.COMM_WORLD, [[0.0, 0.0, 0.0], [10.0, 4.0, 4.0]], cells)
         domain = hf.Domain.from_locators(box, {"clamped": lambda x: np.isclose(x[0], 0.0)})
         problem = hf.HyperelasticProblem(domain, _neo_hookean, degree=degree, bcs=[hf.Clamp("clamped")])
-        return problem.V.dofmap.index_map.size_global * 3, choose_linear_solver(problem).options.get("ksp_type"), problem
+        ksp_type = choose_linear_solver(problem).options.get("ksp_type")
+        return problem.V.dofmap.index_map.size_global * 3, ksp_type, problem
 
     n2, k2, _ = kind([14, 6, 6], 2)  # 14.7k unknowns
     n3, k3, p3 = kind([8, 4, 4], 3)  # 12.7k

@@ -13,7 +13,7 @@ and is re-evaluated for many values of ``F`` and ``Q``.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -86,7 +86,7 @@ class _Evaluator:
         return v[0], v[1], v[2 : 2 + n].reshape(d, d), v[2 + n :].reshape(d, d)
 
 
-@lru_cache(maxsize=None)
+@cache
 def evaluator(name: str, dim: int) -> _Evaluator:
     return _Evaluator(name, dim)
 

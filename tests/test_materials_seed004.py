@@ -20,7 +20,7 @@ r"""The materials of seed 004: polar SVD, stable Neo-Hookean, fixed-corotated, A
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -100,10 +100,10 @@ def cofactor_np(F):
 
 def linear_tensor(mu, lam, dim):
     """d^2 psi_lin / dF dF: mu (d_ik d_jl + d_il d_jk) + lam d_ij d_kl."""
-    I = np.eye(dim)
+    eye = np.eye(dim)
     return (
-        mu * (np.einsum("ik,jl->ijkl", I, I) + np.einsum("il,jk->ijkl", I, I))
-        + lam * np.einsum("ij,kl->ijkl", I, I)
+        mu * (np.einsum("ik,jl->ijkl", eye, eye) + np.einsum("il,jk->ijkl", eye, eye))
+        + lam * np.einsum("ij,kl->ijkl", eye, eye)
     )
 
 
@@ -167,10 +167,10 @@ def test_polar_matches_independent_references(dim):
     """R = F (F^T F)^{-1/2} for det F > 0; Kabsch (SVD + det fix) otherwise; R is the closest rotation."""
     F = _sample(dim)
     R = polar_rotation(F)
-    for Fi, Ri in zip(F, R):
+    for Fi, Ri in zip(F, R, strict=True):
         np.testing.assert_allclose(Ri, reference_rotation(Fi), atol=1e-11)
     rng = np.random.default_rng(8)
-    for Fi, Ri in zip(F[:10], R[:10]):
+    for Fi, Ri in zip(F[:10], R[:10], strict=True):
         best = np.sum((Fi - Ri) ** 2)
         for _ in range(20):
             Q = random_rotation(rng, dim)
@@ -205,8 +205,8 @@ def test_rotation_derivative(dim):
     np.testing.assert_allclose(np.einsum("nijkl,nkl->nij", T, R @ dS), 0.0, atol=1e-12)
     U0, s0, V0 = polar_svd(np.eye(dim)[None])
     T0 = rotation_derivative(U0, s0, V0)[0]
-    I = np.eye(dim)
-    skew = 0.5 * (np.einsum("ik,jl->ijkl", I, I) - np.einsum("il,jk->ijkl", I, I))
+    eye = np.eye(dim)
+    skew = 0.5 * (np.einsum("ik,jl->ijkl", eye, eye) - np.einsum("il,jk->ijkl", eye, eye))
     np.testing.assert_allclose(T0, skew, atol=1e-14)
 
 
@@ -276,7 +276,7 @@ class _Point:
         K = ufl.diff(P, F)
         Kc = ufl.diff(ufl.diff(correction, F), F) if correction is not None else ufl.zero((dim,) * 4)
         idx2 = [(i, j) for i in range(dim) for j in range(dim)]
-        idx4 = [(i, j, k, l) for i, j in idx2 for k, l in idx2]
+        idx4 = [(i, j, p, q) for i, j in idx2 for p, q in idx2]
         entries = [psi] + [P[a] for a in idx2] + [closed[a] for a in idx2]
         entries += [K[a] for a in idx4] + [Kc[a] for a in idx4]
         self.expr = fem.Expression(ufl.as_vector(entries), points, jit_options=JIT_OPTIONS)
@@ -307,7 +307,7 @@ class _Point:
         return tuple(out)
 
 
-@lru_cache(maxsize=None)
+@cache
 def point(name: str, dim: int) -> _Point:
     return _Point(name, dim)
 

@@ -17,9 +17,9 @@ DEMO = ROOT / "demos" / "muscle.py"
 # Committed (gmsh 4.15, h = 8 mm, default geometry): a gmsh of another version meshes differently.
 MESH = ROOT / "meshes" / "fusiform_h8mm.msh"
 
-# Serial run of `demos/muscle.py --mesh meshes/fusiform_h8mm.msh --steps 3` (268 cells, three-field P2/P1/P1, 2180 dofs); 2 ranks
-# must agree. The old two-field ln J form gave 1.4591467, 2.6522203, 3.6820586 N, bulge 1.31992 mm and
-# shortening 13.04143 mm (0.2-0.6 % apart; 0.05-0.4 % at the default h = 0.005: discretisation error).
+# Serial run of `demos/muscle.py --mesh meshes/fusiform_h8mm.msh --steps 3` (268 cells, three-field P2/P1/P1,
+# 2180 dofs); 2 ranks must agree. The old two-field ln J form gave 1.4591467, 2.6522203, 3.6820586 N, bulge
+# 1.31992 mm and shortening 13.04143 mm (0.2-0.6 % apart; 0.05-0.4 % at the default h = 0.005: discretisation error).
 EXPECTED_REACTION = [0.0, 1.462016213502715, 2.6628865684311207, 3.7043146383794987]
 EXPECTED_BULGE = 0.0013229982720117366
 EXPECTED_SHORTENING = 0.013068608770634121

@@ -86,7 +86,8 @@ def test_predictor_only_when_the_boundary_moves():
 def _half_turn(predictor: bool):
     domain = hf.read_mesh(MESHES / "beam_h2.msh")
     params = CantileverSpec().lame
-    bcs = [hf.Clamp("clamped"), rotating_surface("free_end", (1.0, 0.0, 0.0), Ramp(1.0, final=math.pi), (5.0, 0.0, 0.0))]
+    turn = rotating_surface("free_end", (1.0, 0.0, 0.0), Ramp(1.0, final=math.pi), (5.0, 0.0, 0.0))
+    bcs = [hf.Clamp("clamped"), turn]
     problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params), bcs=bcs)
     steps = hf.solve_quasistatic(
         hf.NewtonSolver(problem, predictor=predictor), stepping=hf.LoadStepping(initial_increment=0.25)

@@ -258,7 +258,7 @@ def test_multi_region_fields_follow_their_own_material():
     assert len(tangent.fields) == 2
     tangent.active = False
     tangent.refresh()
-    for term, lam in zip(tangent._terms, field_spectra(tangent)):
+    for term, lam in zip(tangent._terms, field_spectra(tangent), strict=True):
         which = tags.values[term.cells]
         assert np.unique(which).size <= 1  # one region per material integral
         params = PARAMS if which.size == 0 or which[0] == 1 else stiff

@@ -131,8 +131,9 @@ def _triaxial(l1: float, l2: float) -> tuple[float, float, float]:
     r""":math:`(P_{11}, P_{22}, \lambda_3)` of neo-Hookean principal stretches with :math:`P_{33} = 0`."""
     mu, lm = PARAMS.mu, PARAMS.lmbda
 
-    def p(l, k):
-        return mu * l[k] - mu / l[k] + lm * math.log(l[0] * l[1] * l[2]) / l[k]
+    def p(stretches, k):
+        s = stretches
+        return mu * s[k] - mu / s[k] + lm * math.log(s[0] * s[1] * s[2]) / s[k]
 
     l3 = 1.0
     for _ in range(50):
@@ -149,7 +150,7 @@ def test_faces_sharing_an_edge_get_their_own_traction(comm, n):
     P11, P22, l3 = _triaxial(l1, l2)
     mesh = dmesh.create_unit_cube(comm, n, n, n)
     faces = {
-        f"{a}{v}": (lambda k, v: lambda x: np.isclose(x[k], v))(k, float(v))
+        f"{a}{v}": (lambda axis, at: lambda x: np.isclose(x[axis], at))(k, float(v))
         for k, a in enumerate("xyz")
         for v in (0, 1)
     }

@@ -16,6 +16,7 @@ Tiny ``create_box`` beams; serial and under ``mpiexec -n 2``.
 """
 
 import importlib.util
+import itertools
 import json
 import math
 import subprocess
@@ -167,7 +168,7 @@ def test_modified_newton_keeps_tangent_across_steps():
     records = stepper.run(12)
     assert records[0].tangents == 1  # the first step builds it
     assert sum(r.tangents for r in records) < len(records)  # fewer tangents than steps
-    for before, after in zip(records, records[1:]):
+    for before, after in itertools.pairwise(records):
         if not before.converged:  # a step that missed the tolerance refreshes the tangent
             assert after.tangents >= 1
     assert max(r.relative_residual for r in records) < 1e-4

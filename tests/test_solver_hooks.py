@@ -13,7 +13,9 @@ from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 
 def _problem():
     params = hf.materials.LameParameters.from_youngs(1.0, 0.3)
-    return hf.HyperelasticProblem(unit_cube(2), lambda F: hf.materials.neo_hookean(F, params), bcs=uniaxial_rollers(1.3))
+    return hf.HyperelasticProblem(
+        unit_cube(2), lambda F: hf.materials.neo_hookean(F, params), bcs=uniaxial_rollers(1.3)
+    )
 
 
 def test_state_hooks_see_every_assembled_state():
