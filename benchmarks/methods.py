@@ -114,7 +114,7 @@ def on_common_times(a: dict, b: dict, key):
     pairs = [(key(r), key(tb[round(r["time"], 9)])) for r in a["rows"] if round(r["time"], 9) in tb]
     if not pairs:
         return np.zeros((0,)), np.zeros((0,))
-    x, y = zip(*pairs)
+    x, y = zip(*pairs, strict=True)
     return np.array(x), np.array(y)
 
 
@@ -271,7 +271,7 @@ def plot(args, runs, ladders, methods) -> None:
 
     cases = args.cases
     fig, axes = plt.subplots(len(cases), 5, figsize=(24, 4.6 * len(cases)), squeeze=False)
-    colours = dict(zip(demo.METHODS, plt.rcParams["axes.prop_cycle"].by_key()["color"]))
+    colours = dict(zip(demo.METHODS, plt.rcParams["axes.prop_cycle"].by_key()["color"], strict=False))
     styles = {"FVM": "--", "SE-FEM": ":"}
     for row, case in enumerate(cases):
         ax_x, ax_k, ax_v, ax_cost, ax_dt = axes[row]

@@ -300,7 +300,7 @@ def main() -> None:
             ref = min(sel, key=lambda r: r["relative_residual_max"])
             scale = sum(c * c for c in ref["test_point"]) ** 0.5
             for r in sel:
-                diff = sum((a - b) ** 2 for a, b in zip(r["test_point"], ref["test_point"])) ** 0.5
+                diff = sum((a - b) ** 2 for a, b in zip(r["test_point"], ref["test_point"], strict=True)) ** 0.5
                 drift[f'{r["config"]}/{tets}/{ranks}'] = diff / scale if scale > 0 else 0.0
     summary["test_point_rel_diff_vs_most_converged"] = drift
     summary["fastest_config_per_size"] = {

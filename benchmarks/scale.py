@@ -20,7 +20,8 @@ ranks), the test-point displacement. At the end: the fitted exponent of time
 and memory vs unknowns, the 2-rank parallel efficiency and the speed-up over
 the baseline at each size; ``--plot`` writes time and memory vs unknowns (PNG).
 
-    python benchmarks/scale.py --sizes 8 12 16 24 32 48 64 --ranks 1 2 --output benchmarks/results/scale.jsonl --plot benchmarks/results/scale.png
+    python benchmarks/scale.py --sizes 8 12 16 24 32 48 64 --ranks 1 2 \
+        --output benchmarks/results/scale.jsonl --plot benchmarks/results/scale.png
     python benchmarks/scale.py --smoke          # tiny sizes; what the test suite runs
 
 ``--formulation mixed`` runs the three-field (u, p, θ) P2/P1/P1 problem of a
@@ -216,6 +217,11 @@ def _launch(N, degree, case, variant, ranks, timeout, formulation="displacement"
     return {"variant": variant, "N": N, "ranks": ranks, "error": (out.stderr or out.stdout).strip().splitlines()[-1:]}
 
 
+def _relative_difference(p: list[float], q: list[float]) -> float:
+    """:math:`|p - q| / |q|` of two test-point displacements."""
+    return float(sum((a - b) ** 2 for a, b in zip(p, q, strict=True)) ** 0.5 / sum(b**2 for b in q) ** 0.5)
+
+
 def _fit(rows, key):
     import numpy as np
 
@@ -279,8 +285,7 @@ def main() -> None:
     }
     summary["test_point_rel_diff_vs_baseline"] = {
         N: max(
-            float(sum((a - b) ** 2 for a, b in zip(by[("hyperfem", r, N)]["test_point"], by[("baseline", r, N)]["test_point"])) ** 0.5
-                  / sum(b**2 for b in by[("baseline", r, N)]["test_point"]) ** 0.5)
+            _relative_difference(by[("hyperfem", r, N)]["test_point"], by[("baseline", r, N)]["test_point"])
             for r in args.ranks if ("hyperfem", r, N) in by and ("baseline", r, N) in by
         )
         for N in args.sizes if any(("hyperfem", r, N) in by and ("baseline", r, N) in by for r in args.ranks)

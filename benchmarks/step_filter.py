@@ -14,7 +14,8 @@ wall time, test-point displacement; then one summary object per
 
 ``--safety`` reruns the exact filter with other values of ``STEP_SAFETY``.
 
-    python benchmarks/step_filter.py [--meshes meshes/beam_h2.msh meshes/beam_h1.msh] [--scales 2 5 20 50 100 200] [--safety 0.9]
+    python benchmarks/step_filter.py [--meshes meshes/beam_h2.msh meshes/beam_h1.msh] \
+        [--scales 2 5 20 50 100 200] [--safety 0.9]
     mpiexec -n 2 python benchmarks/step_filter.py
 """
 

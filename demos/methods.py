@@ -139,7 +139,9 @@ def build(method: str, case: str, domain, spec: CantileverDynamics | None = None
     if method not in METHODS:
         raise hf.ParameterError(f"methods demo: unknown method {method!r} (choose from {', '.join(METHODS)})")
     if method == "COR" and not corotational_available():
-        raise hf.ParameterError("methods demo: COR needs hyperfem.materials.corotational_linear, which is not installed")
+        raise hf.ParameterError(
+            "methods demo: COR needs hyperfem.materials.corotational_linear, which is not installed"
+        )
     spec = CantileverDynamics() if spec is None else spec
     base, must_hit = body(method, case, domain, spec)
     damping = dyn.viscous_damping(spec.damping)

@@ -89,7 +89,9 @@ def parse(argv=None):
     p = ArgumentParser(description="A fusiform muscle contracting with inertia (three-field, backward Euler)")
     where = p.add_mutually_exclusive_group()  # a --mesh given is always read (a missing file is an error)
     where.add_argument("--mesh", type=Path, default=MESH, help="fusiform .msh (default: the committed h = 8 mm mesh)")
-    where.add_argument("--h", type=positive_float, default=None, help="generate a mesh of this element size (m) instead")
+    where.add_argument(
+        "--h", type=positive_float, default=None, help="generate a mesh of this element size (m) instead"
+    )
     p.add_argument("--rho", type=positive_float, default=MUSCLE_DENSITY, help="density (kg/m^3)")
     p.add_argument("--ramp", type=positive_float, default=0.02, help="activation ramp time T_a (s)")
     p.add_argument("--dt", type=positive_float, default=0.002, help="time step (s)")
