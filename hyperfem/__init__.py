@@ -25,7 +25,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from mpi4py import MPI  # noqa: E402, F401  (must precede dolfinx / petsc4py)
 
-from hyperfem import dynamics, errors, kinematics, loading, materials, mesh, simulation
+from hyperfem import contact, dynamics, errors, kinematics, loading, materials, mesh, simulation
 from hyperfem.errors import (
     CheckpointError,
     ConvergenceError,
@@ -86,6 +86,7 @@ __all__ = [
     "StepRecord",
     "UnknownGroupError",
     "beam_mesh",
+    "contact",
     "dynamics",
     "errors",
     "kinematics",

@@ -1,0 +1,96 @@
+r"""Rigid obstacles of contact: a half-space (a plane) with a prescribed translation.
+
+The obstacle :math:`\{x : (x - p(t))\cdot n < 0\}` with the unit outward
+normal :math:`n` and the point
+
+.. math::
+    p(t) = p_0 + f(t)\,m,
+
+:math:`m` the translation (``motion``) and :math:`f` its profile in load factor
+or time (:mod:`hyperfem.loading.profiles`, as for the values of a
+:class:`~hyperfem.problem.PrescribedDisplacement`). The signed distance of a
+point :math:`x` from the plane is :math:`d(x) = (x - p(t))\cdot n`: positive
+on the body's side. Rotating obstacles, spheres, cylinders and triangulated
+tools are later slices of issue 19.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hyperfem.errors import ParameterError
+from hyperfem.loading.profiles import linear_profile
+from hyperfem.validation import check_callable, check_finite_vector
+
+__all__ = ["HalfSpace", "check_plane"]
+
+
+def check_plane(
+    point: Sequence[float], normal: Sequence[float], motion: Sequence[float] | None, where: str
+) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...] | None]:
+    """The point, normal and motion of a plane as float tuples of one length (2 or 3); a one-line error otherwise.
+
+    Raises:
+        ParameterError: A non-finite entry, a length other than 2 or 3, lengths
+            that differ, or a normal of zero length.
+    """
+    p = check_finite_vector(point, where, "point")
+    n = check_finite_vector(normal, where, "normal")
+    m = None if motion is None else check_finite_vector(motion, where, "motion")
+    for what, v in (("point", p), ("normal", n), ("motion", m)):
+        if v is not None and len(v) not in (2, 3):
+            raise ParameterError(f"{where}: {what} must have 2 or 3 components, got {len(v)}")
+        if v is not None and len(v) != len(p):
+            raise ParameterError(f"{where}: {what} has {len(v)} components, point has {len(p)}")
+    if not float(np.linalg.norm(n)) > 0.0:
+        raise ParameterError(f"{where}: normal must be a non-zero vector, got {n}")
+    return p, n, m
+
+
+@dataclass(frozen=True)
+class HalfSpace:
+    r"""A rigid half-space with outward normal ``normal`` through ``point``, translated by ``profile(t)·motion``.
+
+    Attributes:
+        point: A point :math:`p_0` of the plane at :math:`t` with ``profile(t) = 0``.
+        normal: The outward normal (normalised by :attr:`unit_normal`), pointing to the body's side.
+        motion: The translation :math:`m` (``None``: the plane does not move).
+        profile: :math:`f(t)` of the translation (default: the load factor).
+    """
+
+    point: Sequence[float]
+    normal: Sequence[float]
+    motion: Sequence[float] | None = None
+    profile: Callable[[float], float] = linear_profile
+
+    def __post_init__(self) -> None:
+        p, n, m = check_plane(self.point, self.normal, self.motion, "HalfSpace")
+        check_callable(self.profile, "HalfSpace", "profile")
+        object.__setattr__(self, "point", p)
+        object.__setattr__(self, "normal", n)
+        object.__setattr__(self, "motion", m)
+
+    @property
+    def dim(self) -> int:
+        """The number of components (2 or 3)."""
+        return len(self.point)
+
+    @property
+    def unit_normal(self) -> np.ndarray:
+        """:math:`n / |n|`."""
+        n = np.asarray(self.normal, dtype=float)
+        return n / np.linalg.norm(n)
+
+    def origin(self, t: float) -> np.ndarray:
+        """The point :math:`p(t) = p_0 + f(t)\\,m` of the plane at time (load factor) ``t``."""
+        p = np.asarray(self.point, dtype=float)
+        if self.motion is None:
+            return p
+        return p + float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+
+    def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
+        r""":math:`(x - p(t))\cdot n` of points ``x`` (shape ``(m, dim)``): positive on the body's side."""
+        return (np.asarray(x, dtype=float) - self.origin(t)) @ self.unit_normal

@@ -1,0 +1,252 @@
+r"""Frictionless contact of a body with a rigid plane: the IPC barrier of its boundary nodes.
+
+:class:`PlaneContact` names the boundary that may touch and the obstacle (a
+:class:`~hyperfem.contact.obstacles.HalfSpace` with an optional prescribed
+translation); :meth:`PlaneContact.bind` gives the :class:`PlaneBarrier` of a
+problem, the term
+
+.. math::
+    \kappa B(u) = \kappa \sum_a b\bigl(d_a(u)\bigr), \qquad
+    d_a(u) = (X_a + u_a - p(t))\cdot n,
+
+over the contact nodes :math:`a` (:mod:`~hyperfem.contact.nodes`), with the
+IPC barrier :math:`b` of width :math:`\hat d` (:mod:`~hyperfem.contact.barrier`)
+and stiffness :math:`\kappa` (defaults in :mod:`~hyperfem.contact.defaults`).
+Its derivatives are per node,
+
+.. math::
+    \frac{\partial\,\kappa B}{\partial u_a} = \kappa\,b'(d_a)\,n, \qquad
+    \frac{\partial^2 \kappa B}{\partial u_a^2} = \kappa\,b''(d_a)\,n\,n^T,
+
+so the Hessian is one :math:`3\times3` block per active node
+(:math:`d_a < \hat d`), positive semi-definite without projection
+(:math:`b'' > 0` on :math:`(0, \hat d)`), and inside the finite-element
+sparsity pattern (a node's own block). The barrier is an
+:class:`~hyperfem.solver.external.ExternalEnergy` of
+:class:`~hyperfem.solver.NewtonSolver` (``external_energies=[...]``): it
+enters the energy line search, the residual and the tangent, and brings its
+collision-free step filter (:class:`~hyperfem.contact.ccd.PlaneCollisionFilter`).
+
+MPI: each rank evaluates the nodes it owns; no gathering is needed for a
+plane, only the ``allreduce`` of the energy and of the outputs.
+
+Example::
+
+    contact = hf.contact.PlaneContact("bottom", point=(0, 0, 0), normal=(0, 0, 1)).bind(problem)
+    solver = hf.NewtonSolver(problem, external_energies=[contact])
+    outputs = [Recorder(contact)]   # contact_force, contact_active, contact_min_distance per step
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from hyperfem.contact.barrier import barrier, barrier_derivatives, require_ipctk
+from hyperfem.contact.ccd import CCD_SAFETY, PlaneCollisionFilter
+from hyperfem.contact.defaults import default_dhat, default_stiffness
+from hyperfem.contact.nodes import boundary_nodes
+from hyperfem.contact.obstacles import HalfSpace, check_plane
+from hyperfem.errors import ParameterError
+from hyperfem.loading.profiles import linear_profile
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.validation import check_callable, check_name, check_positive
+
+__all__ = ["PlaneBarrier", "PlaneContact"]
+
+
+@dataclass(frozen=True)
+class PlaneContact:
+    r"""Frictionless, intersection-free contact of a named boundary with a rigid plane (module docstring).
+
+    Attributes:
+        boundary: The boundary group whose nodes may touch the plane.
+        point: A point of the plane (at ``profile(t) = 0``).
+        normal: The plane's outward normal, pointing to the body's side.
+        dhat: Barrier width :math:`\hat d > 0` (``None``: :func:`~hyperfem.contact.defaults.default_dhat`).
+        stiffness: Barrier stiffness :math:`\kappa > 0` (``None``:
+            :func:`~hyperfem.contact.defaults.default_stiffness`; fixed for the run).
+        motion: A translation of the plane, scaled by ``profile(t)`` (``None``: it stays).
+        profile: :math:`f(t)` of the translation (default: the load factor).
+        safety: The collision filter's :math:`s \in (0, 1)` (:data:`~hyperfem.contact.ccd.CCD_SAFETY`).
+        name: Prefix of the output columns (``contact_force``, ...).
+
+    Raises:
+        ParameterError: A bad entry (one line), or ``ipctk`` is not installed
+            (the message names the extra ``hyperfem[contact]``).
+    """
+
+    boundary: str
+    point: Sequence[float]
+    normal: Sequence[float]
+    dhat: float | None = None
+    stiffness: float | None = None
+    motion: Sequence[float] | None = None
+    profile: Callable[[float], float] = linear_profile
+    safety: float = CCD_SAFETY
+    name: str = "contact"
+
+    def __post_init__(self) -> None:
+        check_name(self.boundary, "boundary", "PlaneContact")
+        where = f"PlaneContact on {self.boundary!r}"
+        p, n, m = check_plane(self.point, self.normal, self.motion, where)
+        object.__setattr__(self, "point", p)
+        object.__setattr__(self, "normal", n)
+        object.__setattr__(self, "motion", m)
+        for key in ("dhat", "stiffness"):
+            if getattr(self, key) is not None:
+                check_positive(key, getattr(self, key), where)
+        if not (isinstance(self.safety, (int, float)) and 0.0 < self.safety < 1.0):
+            raise ParameterError(f"{where}: safety must be a number in (0, 1), got {self.safety!r}")
+        check_callable(self.profile, where, "profile")
+        check_name(self.name, "name", where)
+        require_ipctk(where)
+
+    @property
+    def obstacle(self) -> HalfSpace:
+        """The plane as a :class:`~hyperfem.contact.obstacles.HalfSpace`."""
+        return HalfSpace(self.point, self.normal, self.motion, self.profile)
+
+    def bind(self, problem: SolidProblem) -> PlaneBarrier:
+        """The barrier of this contact on ``problem`` (collective).
+
+        Raises:
+            UnknownGroupError: ``boundary`` is not a boundary group of the mesh (the message lists them).
+            ParameterError: The plane's dimension differs from the mesh's, or a
+                node starts on or behind the plane (the message gives the node and its distance).
+        """
+        return PlaneBarrier(self, problem)
+
+
+class PlaneBarrier:
+    r"""The barrier term :math:`\kappa B(u)` of a :class:`PlaneContact` on a problem (module docstring).
+
+    An :class:`~hyperfem.solver.external.ExternalEnergy`. Its outputs
+    (:meth:`record`, for :class:`~hyperfem.simulation.Recorder`) are the force
+    the plane exerts on the body, :math:`f = -\sum_a \kappa b'(d_a)\,n`, the
+    number of active nodes (:math:`d_a < \hat d`) and the smallest distance.
+
+    Args:
+        contact: The contact.
+        problem: The problem.
+
+    Attributes:
+        dhat: :math:`\hat d`.
+        stiffness: :math:`\kappa`.
+        nodes: The owned contact nodes.
+        step_filter: The collision filter.
+        time: The time (load factor) the plane is at.
+    """
+
+    def __init__(self, contact: PlaneContact, problem: SolidProblem):
+        self.contact = contact
+        self.where = f"PlaneContact on {contact.boundary!r}"
+        self.problem = problem
+        self.comm = problem.domain.comm
+        self.obstacle = contact.obstacle
+        if self.obstacle.dim != problem.domain.gdim:
+            raise ParameterError(
+                f"{self.where}: the plane has {self.obstacle.dim} components, the mesh {problem.domain.gdim}"
+            )
+        self.normal = self.obstacle.unit_normal
+        self.nodes = boundary_nodes(problem, contact.boundary)
+        self.dhat = contact.dhat if contact.dhat is not None else default_dhat(problem, contact.boundary)
+        self.update(problem.time)
+        self._check_start()
+        self.stiffness = (
+            contact.stiffness if contact.stiffness is not None else default_stiffness(problem, self.nodes, self.normal)
+        )
+        self.step_filter = PlaneCollisionFilter(self.nodes.dofs, self.distances, self.normal, contact.safety)
+
+    # -- the ExternalEnergy contract ----------------------------------------
+    def update(self, t: float) -> None:
+        """Move the plane to time (load factor) ``t``."""
+        self.time = float(t)
+        self._origin = self.obstacle.origin(t)
+
+    def distances(self, u: np.ndarray) -> np.ndarray:
+        """Signed distances :math:`d_a` of the owned nodes for the unknown's local array ``u``."""
+        return (self.nodes.positions(u) - self._origin) @ self.normal
+
+    def energy(self, u: np.ndarray) -> float:
+        r"""This rank's :math:`\kappa\sum_a b(d_a)` (``inf`` if a node is on or behind the plane)."""
+        return self.stiffness * float(barrier(self.distances(u), self.dhat).sum())
+
+    def _active(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rows of the nodes with :math:`d < \\hat d` and their :math:`b'`, :math:`b''`."""
+        d = self.distances(u)
+        rows = np.flatnonzero(d < self.dhat)
+        first, second = barrier_derivatives(d[rows], self.dhat)
+        return rows, first, second
+
+    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`\kappa b'(d_a)\,n` at the active nodes: ``(dofs, values)`` of shape ``(m, dim)``."""
+        rows, first, _ = self._active(u)
+        return self.nodes.dofs[rows], self.stiffness * first[:, None] * self.normal[None, :]
+
+    def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`\kappa b''(d_a)\,n n^T` at the active nodes: ``(dofs, blocks)``, blocks ``(m, dim, dim)``."""
+        rows, _, second = self._active(u)
+        outer = np.outer(self.normal, self.normal)
+        return self.nodes.dofs[rows], self.stiffness * second[:, None, None] * outer[None, :, :]
+
+    def admissible(self, u: np.ndarray) -> str:
+        """``""``, or which owned node is on or behind the plane and its distance."""
+        d = self.distances(u)
+        if not len(d) or d.min() > 0.0:
+            return ""
+        k = int(np.argmin(d))
+        return (
+            f"{self.where}: the node at {tuple(float(f'{v:.6g}') for v in self.nodes.X[k])} is on or behind the "
+            f"plane at t = {self.time:g} (distance {d[k]:.3g})"
+        )
+
+    # -- outputs ------------------------------------------------------------
+    def _state(self, u: np.ndarray | PETSc.Vec | None) -> np.ndarray:
+        if u is None:
+            return self.problem.u.x.array
+        return u.array_r if isinstance(u, PETSc.Vec) else u
+
+    def force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
+        r"""The force the plane exerts on the body, :math:`-\sum_a \kappa b'(d_a)\,n` (collective).
+
+        Args:
+            u: The unknown's local array or a SNES vector (default: the current state).
+        """
+        _, values = self.gradient(self._state(u))
+        return -self.comm.allreduce(values.sum(axis=0), op=MPI.SUM)
+
+    def active_count(self, u: np.ndarray | PETSc.Vec | None = None) -> int:
+        r"""Nodes with :math:`d_a < \hat d`, over all ranks (collective)."""
+        return int(self.comm.allreduce(int((self.distances(self._state(u)) < self.dhat).sum()), op=MPI.SUM))
+
+    def min_distance(self, u: np.ndarray | PETSc.Vec | None = None) -> float:
+        """The smallest signed distance of a contact node, over all ranks (collective)."""
+        d = self.distances(self._state(u))
+        return float(self.comm.allreduce(float(d.min()) if len(d) else float("inf"), op=MPI.MIN))
+
+    def record(self, step: object = None) -> dict[str, object]:
+        """The output columns at the current state: ``<name>_force``, ``<name>_active``, ``<name>_min_distance``."""
+        name = self.contact.name
+        return {
+            f"{name}_force": [float(v) for v in self.force()],
+            f"{name}_active": self.active_count(),
+            f"{name}_min_distance": self.min_distance(),
+        }
+
+    def _check_start(self) -> None:
+        """A one-line :class:`ParameterError` (every rank) if a node starts on or behind the plane."""
+        u = self.problem.u.x.array
+        d = self.distances(u)
+        local = (float(d.min()), self.nodes.X[int(np.argmin(d))].tolist()) if len(d) else (float("inf"), [])
+        distance, X = min(self.comm.allgather(local), key=lambda item: item[0])
+        if not distance > 0.0:
+            where = tuple(float(f"{v:.6g}") for v in X)
+            raise ParameterError(
+                f"{self.where}: the body starts on the wrong side of the plane: the node at {where} has distance "
+                f"{distance:.6g} (need > 0; the normal points to the body's side)"
+            )

@@ -1,0 +1,156 @@
+r"""Energies of the unknown's nodal values that are not UFL forms (a contact barrier), in the Newton system.
+
+The total potential of a problem with contact is
+
+.. math::
+    \Pi(u) = \Pi_\text{elastic}(u) - W_\text{ext}(u) + \sum_e E_e(u),
+
+where each :math:`E_e` (:class:`ExternalEnergy`, e.g. the barrier
+:math:`\kappa B(x(u))` of :class:`~hyperfem.contact.PlaneContact`) is
+evaluated on the unknown's nodal values in numpy rather than assembled from a
+form. :class:`ExternalTerms` adds them to what
+:class:`~hyperfem.solver.NewtonSolver` gives SNES:
+
+* the **objective** (the energy line search judges contact too):
+  :math:`\sum_e E_e`, summed over the ranks with ``allreduce``;
+* the **residual**: :math:`\partial E_e/\partial u` added to the assembled
+  vector, except on Dirichlet dofs, whose rows keep :math:`x - g`;
+* the **tangent**: the blocks of :math:`\partial^2 E_e/\partial u^2` added to
+  the assembled matrix with the rows *and* columns of Dirichlet dofs zeroed,
+  so those rows stay identity rows and the columns zero (DOLFINx has applied
+  the conditions to the assembled matrix already);
+* the **start check**: a state an energy refuses (a node through an obstacle)
+  is not solved from: the solve fails and the stepper cuts back;
+* the **step filters** the energies bring (a continuous collision detection),
+  composed with the inversion filter.
+
+Blocks are added with ``MatSetValues`` into the finite-element sparsity
+pattern: an energy's Hessian must couple only dofs that an element couples
+already (true for point–obstacle terms: one block per node). Terms between
+nodes of different elements (contact pairs between bodies, self-contact) need
+a matrix of their own or a preallocated pattern: a later slice of issue 19.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from hyperfem.errors import ParameterError
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.solver.filters import NewtonStepFilter
+
+__all__ = ["ExternalEnergy", "ExternalTerms"]
+
+
+@runtime_checkable
+class ExternalEnergy(Protocol):
+    r"""An energy of the unknown's nodal values that the Newton solver adds to :math:`\Pi` (module docstring).
+
+    Every method takes ``u``, the unknown's local array (``problem.u.x.array``:
+    owned entries first, then ghosts), and reports this rank's part: the terms
+    of the nodes it owns. Dofs are local indices into ``u``; rows must be owned.
+
+    Attributes:
+        step_filter: A filter the solver composes with its inversion filter
+            (``None``: the energy needs none).
+    """
+
+    step_filter: NewtonStepFilter | None
+
+    def update(self, t: float) -> None:
+        """Move to time (load factor) ``t`` (an obstacle's prescribed motion)."""
+
+    def energy(self, u: np.ndarray) -> float:
+        """This rank's part of the energy (``inf`` where the state is inadmissible)."""
+
+    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(dofs, values)``, both of shape ``(m, k)``: the gradient entries of ``m`` groups of ``k`` dofs."""
+
+    def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(dofs, blocks)`` of shapes ``(m, k)`` and ``(m, k, k)``: symmetric positive semi-definite blocks."""
+
+    def admissible(self, u: np.ndarray) -> str:
+        """An empty string where the state is admissible on this rank, else why not (one line)."""
+
+
+class ExternalTerms:
+    """The external energies of one solver, added to its objective, residual and tangent (module docstring).
+
+    Args:
+        problem: The problem (its unknown and Dirichlet conditions).
+        energies: The energies.
+
+    Raises:
+        ParameterError: An entry does not meet :class:`ExternalEnergy`.
+    """
+
+    def __init__(self, problem: SolidProblem, energies: Iterable[ExternalEnergy] = ()):
+        self.energies: list[ExternalEnergy] = []
+        for energy in energies:
+            if not isinstance(energy, ExternalEnergy):
+                raise ParameterError(
+                    "NewtonSolver: an external energy needs step_filter, update(t), energy(u), gradient(u), "
+                    f"hessian(u) and admissible(u) (e.g. PlaneContact(...).bind(problem)), got {type(energy).__name__}"
+                )
+            self.energies.append(energy)
+        self.u = problem.u
+        self.comm = problem.domain.comm
+        W = problem.u.function_space
+        index_map, bs = W.dofmap.index_map, W.dofmap.index_map_bs
+        blocks = index_map.local_to_global(np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32))
+        self._global = (blocks[:, None] * bs + np.arange(bs)).ravel().astype(PETSc.IntType)
+        self._constrained = np.zeros(len(self._global), dtype=bool)
+        for bc in problem.bcs:
+            self._constrained[bc.dof_indices()[0]] = True
+
+    def __bool__(self) -> bool:
+        return bool(self.energies)
+
+    @property
+    def step_filters(self) -> list[NewtonStepFilter]:
+        """The step filters the energies bring."""
+        return [e.step_filter for e in self.energies if e.step_filter is not None]
+
+    def update(self, t: float) -> None:
+        """Move every energy to time ``t``."""
+        for energy in self.energies:
+            energy.update(t)
+
+    def energy(self) -> float:
+        """The sum of the energies at the unknown's current state (collective)."""
+        local = sum((float(e.energy(self.u.x.array)) for e in self.energies), 0.0)
+        return float(self.comm.allreduce(local, op=MPI.SUM))
+
+    def add_residual(self, b: PETSc.Vec) -> None:
+        """Add the gradients at the current state to the assembled residual ``b``, Dirichlet rows excepted."""
+        for energy in self.energies:
+            dofs, values = energy.gradient(self.u.x.array)
+            values = np.where(self._constrained[dofs], 0.0, values)
+            b.setValues(self._global[dofs.ravel()], values.ravel().tolist(), addv=True)  # True: ADD_VALUES
+        b.assemble()
+
+    def add_tangent(self, A: PETSc.Mat) -> None:
+        """Add the Hessian blocks at the current state to the assembled tangent ``A``.
+
+        The rows and columns of Dirichlet dofs are zeroed in each block, so the
+        identity rows and zero columns DOLFINx made there stay exact.
+        """
+        for energy in self.energies:
+            dofs, blocks = energy.hessian(self.u.x.array)
+            if not len(dofs):
+                continue
+            free = ~self._constrained[dofs]
+            blocks = blocks * free[:, :, None] * free[:, None, :]
+            rows = self._global[dofs]
+            A.setValuesRCV(rows, rows, blocks.reshape(len(dofs), -1), addv=PETSc.InsertMode.ADD_VALUES)
+        A.assemble()
+
+    def refusal(self) -> str:
+        """Why an energy refuses the current state (the first reason over the ranks), or ``""`` (collective)."""
+        local = next((why for e in self.energies if (why := e.admissible(self.u.x.array))), "")
+        return next((why for why in self.comm.allgather(local) if why), "")
