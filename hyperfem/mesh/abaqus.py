@@ -33,12 +33,17 @@ specific message. Every error is a :class:`~hyperfem.errors.MeshError`
 
 from __future__ import annotations
 
+from collections.abc import Container
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hyperfem.errors import MeshError
+
+if TYPE_CHECKING:
+    import meshio
 
 __all__ = ["FACES", "InpModel", "faces", "has_surfaces", "read_inp"]
 
@@ -175,7 +180,7 @@ class InpModel:
     _node_at: dict[int, int] = field(default_factory=dict)  # label → point index
 
     # -- ties to meshio ---------------------------------------------------------------------------
-    def match(self, mesh) -> None:
+    def match(self, mesh: meshio.Mesh) -> None:
         """Check that meshio read the same nodes and elements in the same order; index the labels.
 
         Raises:
@@ -227,7 +232,9 @@ class InpModel:
             return tail
         return token
 
-    def _members(self, sets: dict[str, _Set], name: str, kind: str, known, seen=()) -> list[int]:
+    def _members(
+        self, sets: dict[str, _Set], name: str, kind: str, known: Container[int], seen: tuple[str, ...] = ()
+    ) -> list[int]:
         """Labels of set ``name`` (upper case), sets named in it expanded; unknown labels refused."""
         entry = sets[name]
         keyword = "*ELSET" if kind == "element" else "*NSET"
@@ -303,7 +310,8 @@ class InpModel:
             MeshError: An unknown element, node or set; a face identifier other than S1..S4; an element
                 that is not a tetrahedron; a face inside the mesh; a surface without exterior faces.
         """
-        offsets = dict(zip(volume, np.cumsum([0] + [len(self.blocks[b].labels) for b in volume]), strict=False))
+        starts = np.cumsum([0] + [len(self.blocks[b].labels) for b in volume])
+        offsets = {b: int(start) for b, start in zip(volume, starts, strict=False)}  # starts has one more
         all_faces = faces(cells)  # (4, n, w)
         keys = np.sort(all_faces[:, :, :3].reshape(-1, 3), axis=1)
         _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
@@ -347,7 +355,9 @@ class InpModel:
             raise MeshError(f"{self.path}:{line}: *SURFACE {surface.name}: no node set {raw!r}")
         return [self._node_at[n] for n in self._members(self.nsets, token.upper(), "node", self._node_at)]
 
-    def _element_rows(self, surface, line, raw, offsets, cell_types) -> np.ndarray:
+    def _element_rows(
+        self, surface: _Surface, line: int, raw: str, offsets: dict[int, int], cell_types: list[str]
+    ) -> np.ndarray:
         token = self._strip(raw)
         if token.lstrip("-").isdigit():
             if int(token) not in self._element_at:
@@ -377,7 +387,9 @@ class InpModel:
             )
         return int(label[1]) - 1
 
-    def _refuse_interior(self, surface, line, k, row, inverse, offsets) -> None:
+    def _refuse_interior(
+        self, surface: _Surface, line: int, k: int, row: int, inverse: np.ndarray, offsets: dict[int, int]
+    ) -> None:
         label = self._label_of(row, offsets)
         others = np.flatnonzero((inverse == inverse[k, row]).any(axis=0))
         other = next((self._label_of(int(r), offsets) for r in others if r != row), None)
@@ -440,16 +452,16 @@ def read_inp(path: str | Path) -> InpModel:
             instances.append(keyword)
         elif name == "NODE":
             labels = [_int(tokens[0], line, path, "*NODE") for line, tokens in keyword.data if tokens]
-            if keyword.params.get("NSET"):
-                entry = nsets.setdefault(keyword.params["NSET"].upper(), _Set(keyword.params["NSET"], keyword.line))
+            if nset := keyword.params.get("NSET"):
+                entry = nsets.setdefault(nset.upper(), _Set(nset, keyword.line))
                 entry.items.extend((line, tokens[0]) for line, tokens in keyword.data if tokens)
             node_labels.extend(labels)
         elif name == "ELEMENT":
             tokens = [(line, t) for line, ts in keyword.data for t in ts]
             values = np.array([_int(t, line, path, "*ELEMENT") for line, t in tokens], dtype=np.int64)
             blocks.append(_Block(keyword.line, np.zeros(0, np.int64), values))
-            if keyword.params.get("ELSET"):
-                entry = elsets.setdefault(keyword.params["ELSET"].upper(), _Set(keyword.params["ELSET"], keyword.line))
+            if elset := keyword.params.get("ELSET"):
+                entry = elsets.setdefault(elset.upper(), _Set(elset, keyword.line))
                 entry.blocks.append(len(blocks) - 1)
         elif name == "ELSET":
             _add_set(elsets, keyword, "ELSET", path)

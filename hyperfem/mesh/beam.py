@@ -14,6 +14,7 @@ gmsh runs on rank 0 only; the mesh is distributed by DOLFINx.
 from __future__ import annotations
 
 from pathlib import Path
+from types import ModuleType
 
 from mpi4py import MPI
 
@@ -39,7 +40,7 @@ def _check(h: float, order: int) -> None:
         raise ParameterError(f"beam mesh: order must be 1 or 2, got {order!r}")
 
 
-def _build_beam_model(gmsh, h: float, order: int) -> None:
+def _build_beam_model(gmsh: ModuleType, h: float, order: int) -> None:
     gmsh.model.add("beam")
     gmsh.model.occ.addBox(-LENGTH / 2, -WIDTH / 2, -HEIGHT / 2, LENGTH, WIDTH, HEIGHT)
     gmsh.model.occ.synchronize()

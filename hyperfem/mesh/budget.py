@@ -48,10 +48,14 @@ import os
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError, ProblemSizeError
+
+if TYPE_CHECKING:
+    from hyperfem.mesh.domain import Domain
 
 __all__ = [
     "ALLOW_LARGE_ENV",
@@ -322,7 +326,11 @@ def check_mesh_size(
 
 
 def check_problem_size(
-    domain, fields: Sequence[tuple[int, int]], quadrature_degree: int, where: str, allow_large: bool | None = None
+    domain: Domain,
+    fields: Sequence[tuple[int, int]],
+    quadrature_degree: int,
+    where: str,
+    allow_large: bool | None = None,
 ) -> SizeEstimate:
     """Refuse to build a space of ``fields`` on ``domain`` that would not fit in memory (collective).
 

@@ -44,16 +44,19 @@ degenerate tetrahedra, and inverted (negatively oriented) tetrahedra unless
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hyperfem.mesh.abaqus import InpModel, faces, has_surfaces, read_inp
 from hyperfem.mesh.orientation import orientation
 from hyperfem.errors import MeshError, MeshFileNotFoundError, ParameterError
+
+if TYPE_CHECKING:
+    import meshio
 
 __all__ = ["NAMED_DIMS", "TAG_ARRAYS", "Conversion", "convert", "describe_msh", "parse_names"]
 
@@ -107,7 +110,7 @@ class Conversion:
 _HYBRID_TET = re.compile(r"(?im)^\s*\*\s*ELEMENT\b[^\n]*?\bTYPE\s*=\s*C3D4H\b")
 
 
-def _read(path: Path, notes: list[str] | None = None):
+def _read(path: Path, notes: list[str] | None = None) -> meshio.Mesh:
     """The meshio mesh of ``path``; Abaqus C3D4H (hybrid) tetrahedra are read as C3D4, with a note."""
     import meshio
 
@@ -137,7 +140,7 @@ def _read(path: Path, notes: list[str] | None = None):
         raise MeshError(f"{path}: meshio cannot read it: {reason}") from None
 
 
-def _blocks(mesh, path: Path) -> tuple[str, list[int], list[int], list[str]]:
+def _blocks(mesh: meshio.Mesh, path: Path) -> tuple[str, list[int], list[int], list[str]]:
     """The tetrahedron type, indices of volume and facet blocks, and notes on ignored cells."""
     types = [block.type for block in mesh.cells]
     counts: dict[str, int] = {}
@@ -182,7 +185,7 @@ def _dim(cell_type: str) -> int:
     return 3
 
 
-def _tag_array(mesh, tags: str | None, path: Path) -> str | None:
+def _tag_array(mesh: meshio.Mesh, tags: str | None, path: Path) -> str | None:
     if tags is not None:
         if tags not in mesh.cell_data:
             available = ", ".join(mesh.cell_data) or "none"
@@ -191,9 +194,9 @@ def _tag_array(mesh, tags: str | None, path: Path) -> str | None:
     return next((name for name in TAG_ARRAYS if name in mesh.cell_data), None)
 
 
-def _names_from_field_data(mesh) -> dict[tuple[int, int], str]:
+def _names_from_field_data(mesh: meshio.Mesh) -> dict[tuple[int, int], str]:
     """(dim, tag) → name from gmsh field data."""
-    out = {}
+    out: dict[tuple[int, int], str] = {}
     for name, value in mesh.field_data.items():
         value = np.asarray(value).reshape(-1)
         if value.size >= 2:
@@ -246,7 +249,16 @@ def _group_name(kind: str, dim: int, tag: int, file_names: Mapping, given: Mappi
     return f"{kind}_{tag}"
 
 
-def _groups_from_array(mesh, name, volume, facets, tet, path, names=None, unnamed=None):
+def _groups_from_array(
+    mesh: meshio.Mesh,
+    name: str,
+    volume: list[int],
+    facets: list[int],
+    tet: str,
+    path: Path,
+    names: Mapping[tuple[int | None, int], str] | None = None,
+    unnamed: list[str] | None = None,
+) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray]]:
     field_names = _names_from_field_data(mesh)
     given = names or {}
     unnamed = [] if unnamed is None else unnamed
@@ -263,7 +275,8 @@ def _groups_from_array(mesh, name, volume, facets, tet, path, names=None, unname
     keep = facet_tags > 0 if name == "gmsh:physical" else np.ones(len(facet_tags), dtype=bool)
     boundary_tags = [int(v) for v in np.unique(facet_tags[keep])]
     _check_named_tags(given, region_tags, boundary_tags, path)
-    regions, boundaries = {}, {}
+    regions: dict[str, np.ndarray] = {}
+    boundaries: dict[str, np.ndarray] = {}
     for groups, kind, dim, found in ((regions, "region", 3, region_tags), (boundaries, "boundary", 2, boundary_tags)):
         for value in found:
             group = _group_name(kind, dim, value, field_names, given, unnamed)
@@ -288,7 +301,14 @@ def _check_named_tags(given: Mapping, region_tags: list[int], boundary_tags: lis
             )
 
 
-def _groups_from_sets(mesh, volume, facets, cells, path, helpers=frozenset()):
+def _groups_from_sets(
+    mesh: meshio.Mesh,
+    volume: list[int],
+    facets: list[int],
+    cells: np.ndarray,
+    path: Path,
+    helpers: Collection[str] = frozenset(),
+) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray], list[str], list[str]]:
     """Regions, unassigned cells, boundaries, the ``helpers`` left out of the regions, the node-set boundaries.
 
     ``helpers`` (sets that define Abaqus surfaces) are regions only where they overlap no other region: the
@@ -350,7 +370,15 @@ def _face_keys(facets: np.ndarray) -> np.ndarray:
     return keys.view(np.dtype((np.void, 24))).reshape(-1)
 
 
-def _one_boundary_per_face(boundaries, from_nodes, strict, path, cautions, notes, helpers=frozenset()):
+def _one_boundary_per_face(
+    boundaries: dict[str, np.ndarray],
+    from_nodes: list[str],
+    strict: bool,
+    path: Path,
+    cautions: list[str],
+    notes: list[str],
+    helpers: Collection[str] = frozenset(),
+) -> dict[str, np.ndarray]:
     """Give every face one boundary: hyperfem tags each facet once.
 
     Boundaries from node sets that share faces with another boundary are dropped (with a warning, a note for
@@ -598,7 +626,7 @@ def describe_msh(path: str | Path) -> str:
     counts: dict[str, int] = {}
     for block in mesh.cells:
         counts[block.type] = counts.get(block.type, 0) + len(block.data)
-    by_dim: Mapping[int, list[str]] = {}
+    by_dim: dict[int, list[str]] = {}
     for name, value in mesh.field_data.items():
         by_dim.setdefault(int(np.asarray(value).reshape(-1)[1]), []).append(name)
     cells = ", ".join(f"{v} {k}" for k, v in counts.items() if _dim(k) == 3)

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import ufl
+from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
 from hyperfem.errors import ParameterError, UnknownGroupError
@@ -42,7 +44,7 @@ class Domain:
     source: str = "<memory>"
 
     @property
-    def comm(self):
+    def comm(self) -> MPI.Comm:
         """The mesh communicator."""
         return self.mesh.comm
 
@@ -84,12 +86,12 @@ class Domain:
         assert self.cell_tags is not None
         return self.cell_tags.find(tag)
 
-    def ds(self, name: str, **kwargs) -> ufl.Measure:
+    def ds(self, name: str, **kwargs: Any) -> ufl.Measure:
         """Surface measure restricted to boundary group ``name``."""
         tag = self.facet_tag(name)
         return ufl.Measure("ds", domain=self.mesh, subdomain_data=self.facet_tags, **kwargs)(tag)
 
-    def dx(self, name: str | None = None, **kwargs) -> ufl.Measure:
+    def dx(self, name: str | None = None, **kwargs: Any) -> ufl.Measure:
         """Volume measure, restricted to region ``name`` if given."""
         if name is None:
             return ufl.Measure("dx", domain=self.mesh, **kwargs)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 
 from mpi4py import MPI
 
@@ -86,7 +87,8 @@ class FusiformGeometry:
     def volume(self) -> float:
         r"""Volume of belly and tendons, :math:`\pi L (r_t^2 + r_t b + \tfrac38 b^2) + 2\pi r_t^2 L_t`.
 
-        Here :math:`b = R - r_t`: the mean of :math:`\cos^2` over the belly is :math:`\tfrac12`, of :math:`\cos^4` :math:`\tfrac38`.
+        Here :math:`b = R - r_t`: the mean of :math:`\cos^2` over the belly is :math:`\tfrac12`, of
+        :math:`\cos^4` :math:`\tfrac38`.
         """
         rt, b = self.tendon_radius, self.belly_radius - self.tendon_radius
         belly = math.pi * self.belly_length * (rt**2 + rt * b + 0.375 * b**2)
@@ -98,7 +100,7 @@ class FusiformGeometry:
         return self.belly_length + 2 * self.tendon_length
 
 
-def _build(gmsh, geo: FusiformGeometry, h: float, order: int) -> None:
+def _build(gmsh: ModuleType, geo: FusiformGeometry, h: float, order: int) -> None:
     occ = gmsh.model.occ
     gmsh.model.add("fusiform")
     half = geo.belly_length / 2
@@ -113,7 +115,7 @@ def _build(gmsh, geo: FusiformGeometry, h: float, order: int) -> None:
     occ.fragment([(3, belly[0][1])], [(3, prox), (3, dist)])
     occ.synchronize()
 
-    vols = {"muscle": [], "tendon_proximal": [], "tendon_distal": []}
+    vols: dict[str, list[int]] = {"muscle": [], "tendon_proximal": [], "tendon_distal": []}
     for _, tag in gmsh.model.getEntities(3):
         z = occ.getCenterOfMass(3, tag)[2]
         key = "muscle" if abs(z) < half else ("tendon_proximal" if z < 0 else "tendon_distal")
@@ -121,7 +123,7 @@ def _build(gmsh, geo: FusiformGeometry, h: float, order: int) -> None:
     if any(len(v) != 1 for v in vols.values()):
         raise MeshError(f"fusiform mesh: unexpected volumes {vols}")
     z0, z1 = -half - geo.tendon_length, half + geo.tendon_length
-    surfs = {"origin": [], "insertion": [], "lateral": []}
+    surfs: dict[str, list[int]] = {"origin": [], "insertion": [], "lateral": []}
     boundary = gmsh.model.getBoundary([(3, v[0]) for v in vols.values()], combined=True, oriented=False)
     for _, tag in boundary:
         z = occ.getCenterOfMass(2, abs(tag))[2]

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+from mpi4py import MPI
 
 from hyperfem.errors import MeshError
+
+if TYPE_CHECKING:
+    from dolfinx.io.gmsh import MeshData
 
 __all__ = ["distribute_model", "gmsh_session"]
 
 
 @contextmanager
-def gmsh_session() -> Iterator[object]:
+def gmsh_session() -> Iterator[ModuleType]:
     """Yield the ``gmsh`` module, initialised without terminal output; cleared afterwards.
 
     An already-initialised gmsh (e.g. by the user) is reused and left initialised.
@@ -37,7 +44,9 @@ def _first_line(exc: BaseException) -> str:
     return text or type(exc).__name__
 
 
-def distribute_model(comm, build, gdim: int | None = 3, what: str = "gmsh model"):
+def distribute_model(
+    comm: MPI.Comm, build: Callable[[ModuleType], int | None], gdim: int | None = 3, what: str = "gmsh model"
+) -> MeshData:
     """Build a gmsh model on rank 0 and distribute it as a DOLFINx mesh.
 
     Everything rank 0 does alone (importing and starting gmsh, building or
@@ -59,7 +68,7 @@ def distribute_model(comm, build, gdim: int | None = 3, what: str = "gmsh model"
     """
     from dolfinx.io import gmsh as dgmsh
 
-    def distribute(model, dim: int):
+    def distribute(model: object, dim: int) -> MeshData:
         try:
             return dgmsh.model_to_mesh(model, comm, 0, gdim=dim)
         except RuntimeError as exc:  # raised on every rank (DOLFINx broadcasts its checks)
@@ -67,7 +76,7 @@ def distribute_model(comm, build, gdim: int | None = 3, what: str = "gmsh model"
 
     if comm.rank == 0:
         with ExitStack() as stack:
-            error, dim, gmsh = "", None, None
+            error, dim, gmsh = "", None, None  # dim and gmsh are set when error stays ""
             try:  # importing/starting gmsh and building the model happen on rank 0 alone
                 gmsh = stack.enter_context(gmsh_session())
                 found = build(gmsh)
@@ -77,6 +86,7 @@ def distribute_model(comm, build, gdim: int | None = 3, what: str = "gmsh model"
             comm.bcast((error, dim), root=0)
             if error:
                 raise MeshError(f"{what}: {error}")
+            assert gmsh is not None and dim is not None
             return distribute(gmsh.model, dim)
     error, dim = comm.bcast(None, root=0)
     if error:

@@ -8,6 +8,7 @@ boundary conditions and material regions.
 from __future__ import annotations
 
 from pathlib import Path
+from types import ModuleType
 
 from mpi4py import MPI
 
@@ -41,7 +42,7 @@ def _point(x: np.ndarray) -> str:
     return "(" + ", ".join(f"{v:g}" for v in x) + ")"
 
 
-def _element_name(gmsh, etype: int, count: int = 1) -> str:
+def _element_name(gmsh: ModuleType, etype: int, count: int = 1) -> str:
     """``tetrahedron``, or the plural (``tetrahedra``, ``triangles``) for ``count != 1``."""
     name = str(gmsh.model.mesh.getElementProperties(etype)[0]).split()[0].lower()
     if count == 1:
@@ -49,7 +50,7 @@ def _element_name(gmsh, etype: int, count: int = 1) -> str:
     return name[:-2] + "a" if name.endswith("hedron") else name + "s"
 
 
-def _check_coordinates(gmsh) -> None:
+def _check_coordinates(gmsh: ModuleType) -> None:
     """Every node coordinate must be finite (rank 0)."""
     tags, coords, _ = gmsh.model.mesh.getNodes()
     x = np.asarray(coords, dtype=float).reshape(-1, 3)
@@ -62,7 +63,7 @@ def _check_coordinates(gmsh) -> None:
         )
 
 
-def _check_cells(gmsh, tdim: int, needed: int) -> None:
+def _check_cells(gmsh: ModuleType, tdim: int, needed: int) -> None:
     """The cells must be volume cells of one type (rank 0).
 
     ``tdim`` is the highest dimension of a physical group, ``needed`` the
@@ -91,7 +92,7 @@ def _check_cells(gmsh, tdim: int, needed: int) -> None:
         )
 
 
-def _check_duplicate_nodes(gmsh, tdim: int) -> None:
+def _check_duplicate_nodes(gmsh: ModuleType, tdim: int) -> None:
     """No two nodes of the cells may share coordinates (rank 0): such cells are not connected."""
     used = [gmsh.model.mesh.getElementsByType(t)[1] for t in gmsh.model.mesh.getElementTypes(tdim)]
     if not used:
@@ -117,7 +118,7 @@ def _check_duplicate_nodes(gmsh, tdim: int) -> None:
         )
 
 
-def _geometric_dimension(gmsh, tdim: int) -> int:
+def _geometric_dimension(gmsh: ModuleType, tdim: int) -> int:
     """Smallest dimension >= ``tdim`` whose trailing coordinates are all zero (rank 0)."""
     _, coords, _ = gmsh.model.mesh.getNodes()
     x = np.asarray(coords, dtype=float).reshape(-1, 3)
@@ -165,7 +166,7 @@ def read_mesh(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | Non
         f"`hyperfem convert {path.name} {path.stem}.msh`)"
     )
 
-    def load(gmsh) -> int:
+    def load(gmsh: ModuleType) -> int:
         gmsh.model.add("hyperfem")
         try:
             gmsh.merge(str(path))

@@ -21,11 +21,15 @@ What hyperfem does with them (documented in the CLI help):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from mpi4py import MPI
 
 from hyperfem.errors import MeshError
+
+if TYPE_CHECKING:
+    from hyperfem.mesh.domain import Domain
 
 __all__ = [
     "DEGENERATE_TOLERANCE",
@@ -92,7 +96,7 @@ def orientation(points: np.ndarray) -> tuple[Orientation, np.ndarray, np.ndarray
     return Orientation(len(volume), int(inverted.sum()), int(degenerate.sum())), inverted, degenerate
 
 
-def domain_orientation(domain) -> Orientation | None:
+def domain_orientation(domain: Domain) -> Orientation | None:
     """The counts over the owned cells of a :class:`~hyperfem.mesh.Domain`, reduced over ranks (collective).
 
     Returns:
@@ -111,7 +115,7 @@ def domain_orientation(domain) -> Orientation | None:
     return Orientation(*(int(v) for v in total))
 
 
-def check_cell_volumes(domain) -> Orientation | None:
+def check_cell_volumes(domain: Domain) -> Orientation | None:
     """Refuse a mesh with cells without volume (collective; the same message as ``hyperfem run``).
 
     A flat mesh (every node in one plane) would otherwise surface much later as

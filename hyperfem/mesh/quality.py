@@ -128,9 +128,9 @@ def tetrahedron_quality(points: np.ndarray) -> dict[str, np.ndarray]:
     # 3 r_in / r_out = 3 r_in * 2|det| / |offset_num|
     radius_ratio = _safe_div(6.0 * r_in * np.abs(det), _norm(offset_num))
     inradius_edge = _safe_div(2.0 * math.sqrt(6.0) * r_in, L.max(axis=1))
-    # The faces meeting at edge (i, j) are those opposite the other two nodes k, l.
+    # The faces meeting at edge (i, j) are those opposite the other two nodes p, q.
     others = ((2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1))
-    ratios = np.stack([_safe_div(L[:, e], A[:, k] * A[:, l]) for e, (k, l) in enumerate(others)], axis=1)
+    ratios = np.stack([_safe_div(L[:, e], A[:, p] * A[:, q]) for e, (p, q) in enumerate(others)], axis=1)
     dihedral = 9.0 * math.sqrt(2.0) / 8.0 * V * ratios.min(axis=1)
     volume_length = _safe_div(12.0 * np.cbrt(3.0 * V) ** 2, (L**2).sum(axis=1))
     return _clip(
@@ -204,11 +204,12 @@ def _stats(values: np.ndarray) -> dict[str, float]:
     return out
 
 
-def _gather(comm, local: np.ndarray) -> np.ndarray | None:
+def _gather(comm: MPI.Comm, local: np.ndarray) -> np.ndarray | None:
     """All ranks' values on rank 0 (``None`` elsewhere)."""
     local = np.ascontiguousarray(local, dtype=float)
     counts = comm.gather(local.size, root=0)
     if comm.rank == 0:
+        assert counts is not None  # the root receives the list
         out = np.empty(sum(counts), dtype=float)
         comm.Gatherv(local, (out, counts), root=0)
         return out
@@ -298,7 +299,7 @@ class MeshQuality:
             import matplotlib.pyplot as plt
 
             fig, axes = plt.subplots(1, len(gathered), figsize=(4 * len(gathered), 3.2), sharey=True)
-            for ax, (key, vals) in zip(np.atleast_1d(axes), gathered.items()):
+            for ax, (key, vals) in zip(np.atleast_1d(axes), gathered.items(), strict=True):
                 ax.hist(vals, bins=bins, range=(0.0, 1.0), color="tab:blue")
                 ax.set_xlabel(MEASURES[key])
                 ax.set_xlim(0.0, 1.0)
@@ -312,7 +313,7 @@ class MeshQuality:
         return path
 
 
-def _as_mesh(mesh_or_domain) -> tuple[dmesh.Mesh, str]:
+def _as_mesh(mesh_or_domain: object) -> tuple[dmesh.Mesh, str]:
     if isinstance(mesh_or_domain, Domain):
         return mesh_or_domain.mesh, mesh_or_domain.source
     if isinstance(mesh_or_domain, dmesh.Mesh):
@@ -347,11 +348,11 @@ def mesh_quality(mesh_or_domain: dmesh.Mesh | Domain) -> MeshQuality:
         points = points[:, :, : max(mesh.geometry.dim, 2)]
     values = cell_quality(points)
     comm = mesh.comm
-    stats = {}
+    on_root: dict[str, dict[str, float] | None] = {}
     for key, v in values.items():
-        gathered = _gather(comm, v)
-        stats[key] = _stats(gathered) if comm.rank == 0 else None
-    stats = comm.bcast(stats, root=0)
+        gathered = _gather(comm, v)  # None on ranks other than 0
+        on_root[key] = _stats(gathered) if gathered is not None else None
+    stats: dict[str, dict[str, float]] = comm.bcast(on_root, root=0)  # rank 0's: every value set
     num_cells = mesh.topology.index_map(tdim).size_global
     return MeshQuality(comm, cell_type.name, int(num_cells), values, stats, source)
 
