@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Iterable
+from typing import cast
 
 from hyperfem.errors import ParameterError
 
@@ -34,14 +36,14 @@ __all__ = [
 _AXES = "xyz"
 
 
-def is_real(value) -> bool:
+def is_real(value: object) -> bool:
     """Whether ``value`` is a real number (Python or NumPy; ``bool`` is not a number here), finite or not."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def is_finite_number(value) -> bool:
+def is_finite_number(value: object) -> bool:
     """Whether ``value`` is a finite real number (Python or NumPy; ``bool`` is not a number here)."""
-    return is_real(value) and math.isfinite(float(value))
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(float(value))
 
 
 def check_positive(name: str, value: float, where: str) -> None:
@@ -56,28 +58,28 @@ def check_nonnegative(name: str, value: float, where: str) -> None:
         raise ParameterError(f"{where}: {name} must be a finite number >= 0, got {value!r}")
 
 
-def check_count(name: str, value, where: str) -> None:
+def check_count(name: str, value: object, where: str) -> None:
     """Raise :class:`ParameterError` unless ``value`` is an integer >= 1 (Python or NumPy; not ``bool``)."""
-    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
+    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and int(value) >= 1):
         raise ParameterError(f"{where}: {name} must be an integer >= 1, got {value!r}")
 
 
-def check_finite_scalar(value, where: str, what: str = "value") -> float:
+def check_finite_scalar(value: object, where: str, what: str = "value") -> float:
     """Return ``float(value)``; raise unless it is a finite real number."""
-    if not is_real(value):
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
         raise ParameterError(f"{where}: {what} must be a finite number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ParameterError(f"{where}: {what} must be a finite number, got {value!r}")
-    return value
+    number = float(value)
+    if not math.isfinite(number):
+        raise ParameterError(f"{where}: {what} must be a finite number, got {number!r}")
+    return number
 
 
-def check_finite_vector(value, where: str, what: str = "value") -> tuple[float, ...]:
+def check_finite_vector(value: object, where: str, what: str = "value") -> tuple[float, ...]:
     """Return the components of ``value`` as floats; raise unless each is a finite real number."""
     if isinstance(value, (str, bytes)) or is_real(value):
         raise ParameterError(f"{where}: {what} must be a sequence of numbers or a callable, got {value!r}")
     try:
-        items = list(value)
+        items = list(cast(Iterable[object], value))  # list() raises TypeError on a non-iterable
     except TypeError:
         raise ParameterError(
             f"{where}: {what} must be a sequence of numbers or a callable, got {type(value).__name__}"
@@ -89,11 +91,11 @@ def check_finite_vector(value, where: str, what: str = "value") -> tuple[float, 
         label = f"component {i} ({_AXES[i]})" if i < len(_AXES) else f"component {i}"
         if not is_finite_number(v):
             raise ParameterError(f"{where}: {what} {label} must be a finite number, got {v!r}")
-        out.append(float(v))
+        out.append(float(cast(float, v)))
     return tuple(out)
 
 
-def check_name(name, what: str, where: str, optional: bool = False) -> None:
+def check_name(name: object, what: str, where: str, optional: bool = False) -> None:
     """A physical-group name must be a non-empty string (or ``None`` if ``optional``)."""
     if optional and name is None:
         return
@@ -102,7 +104,7 @@ def check_name(name, what: str, where: str, optional: bool = False) -> None:
         raise ParameterError(f"{where}: {what} must be {kind}, got {name!r}")
 
 
-def check_callable(value, where: str, what: str) -> None:
+def check_callable(value: object, where: str, what: str) -> None:
     """``value`` must be callable."""
     if not callable(value):
         raise ParameterError(f"{where}: {what} must be callable, got {value!r}")

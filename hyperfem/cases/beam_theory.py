@@ -42,7 +42,9 @@ def euler_bernoulli_cantilever(E: float, rho: float, L: float, b: float, h: floa
     return BETA1_L**2 * math.sqrt(E * Iy / (rho * A * L**4))
 
 
-def _determinant(omega, E, G, rho, L, A, Iy, kappa) -> float:
+def _determinant(
+    omega: float, E: float, G: float, rho: float, L: float, A: float, Iy: float, kappa: float
+) -> float:
     kGA = kappa * G * A
     q = rho * A * omega**2 / kGA
     a, bq, c = E * Iy, E * Iy * q + rho * Iy * omega**2, (rho * Iy * omega**2 - kGA) * q

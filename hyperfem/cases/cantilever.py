@@ -28,6 +28,7 @@ one-line statement; the demos print it.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -77,16 +78,16 @@ class CantileverSpec:
         return LameParameters.from_youngs(self.E, self.nu)
 
 
-def bend_load(scale: float = 1.0, profile=None) -> DeadTraction:
+def bend_load(scale: float = 1.0, profile: Callable[[float], float] | None = None) -> DeadTraction:
     """Dead traction ``scale * (0, -5, 0) kPa`` on ``free_end``."""
     t = tuple(scale * c for c in BEND_TRACTION)
     return DeadTraction("free_end", t) if profile is None else DeadTraction("free_end", t, profile)
 
 
-def twist_load(scale: float = 1.0, profile=None) -> FollowerTraction:
+def twist_load(scale: float = 1.0, profile: Callable[[float], float] | None = None) -> FollowerTraction:
     """Follower traction ``scale * 5 kPa * (0, z, -y)`` (current y, z) on ``free_end``."""
 
-    def traction(x):
+    def traction(x: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         return scale * TWIST_MAGNITUDE * ufl.as_vector((0.0, x[2], -x[1]))
 
     return FollowerTraction("free_end", traction) if profile is None else FollowerTraction(
@@ -129,7 +130,9 @@ def mesh_size_of(mesh: str | Path | None) -> float | None:
     return float(m.group(1)) if m else None
 
 
-def convergence_note(case: str, degree: int, h: float | None = None, displacement=None) -> str:
+def convergence_note(
+    case: str, degree: int, h: float | None = None, displacement: Sequence[float] | np.ndarray | None = None
+) -> str:
     """One line saying how far a cantilever result is from the converged answer.
 
     The relative distance of the test-point displacement to the

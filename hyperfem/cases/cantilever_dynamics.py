@@ -36,7 +36,10 @@ from hyperfem.errors import ParameterError
 from hyperfem.loading import Ramp, Steady, rotating_surface
 from hyperfem.materials.neo_hookean import neo_hookean
 from hyperfem.mesh.beam import LENGTH
+from hyperfem.mesh.domain import Domain
 from hyperfem.problem import Clamp, HyperelasticProblem, PrescribedDisplacement
+from hyperfem.problem.boundary_conditions import BoundaryCondition
+from hyperfem.problem.loads import Load
 
 __all__ = ["CASES", "TEST_POINT", "CantileverDynamics", "cantilever_problem"]
 
@@ -60,7 +63,7 @@ class CantileverDynamics(CantileverSpec):
 
 
 def cantilever_problem(
-    case: str, domain, spec: CantileverDynamics | None = None, degree: int = 1
+    case: str, domain: Domain, spec: CantileverDynamics | None = None, degree: int = 1
 ) -> tuple[HyperelasticProblem, list[float]]:
     """Build the hyperelastic problem of one case; its time (``set_time``) is the physical time.
 
@@ -80,8 +83,8 @@ def cantilever_problem(
     T = spec.ramp_time
     steady = Steady()
     ramp = Ramp(T, final=spec.factor)
-    bcs: list = [Clamp("clamped")]
-    loads: list = []
+    bcs: list[BoundaryCondition] = [Clamp("clamped")]
+    loads: list[Load] = []
     must_hit: list[float] = []
 
     if case in ("bend", "i-bend"):

@@ -23,10 +23,21 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from dolfinx import fem
+
 from hyperfem.errors import ParameterError
+from hyperfem.loading.activation import Activation
 from hyperfem.materials.muscle import MuscleParameters, muscle_isochoric
 from hyperfem.mesh.domain import Domain
-from hyperfem.problem import Clamp, DeadTraction, SplitEnergy, solid_problem
+from hyperfem.problem import (
+    Clamp,
+    DeadTraction,
+    HyperelasticProblem,
+    MixedHyperelasticProblem,
+    SplitEnergy,
+    solid_problem,
+)
+from hyperfem.problem.protocol import Updater
 
 __all__ = ["EXPERIMENTS", "MUSCLE_DENSITY", "TENDONS", "muscle_materials", "muscle_problem"]
 
@@ -40,7 +51,9 @@ MUSCLE_DENSITY = 1060.0
 """Mass density of skeletal muscle, kg/m³ (1.06 g/cm³, Mendez & Keys 1960); used for the tendons too."""
 
 
-def muscle_materials(a0, activation, bulk_factor: float = 50.0) -> dict[str, SplitEnergy]:
+def muscle_materials(
+    a0: fem.Function, activation: Activation, bulk_factor: float = 50.0
+) -> dict[str, SplitEnergy]:
     """Split energies of belly and tendons.
 
     Args:
@@ -61,15 +74,15 @@ def muscle_materials(a0, activation, bulk_factor: float = 50.0) -> dict[str, Spl
 
 def muscle_problem(
     domain: Domain,
-    a0,
-    activation,
+    a0: fem.Function,
+    activation: Activation,
     experiment: str = "free",
     *,
     traction: float = 2.0e3,
     bulk_factor: float = 50.0,
     formulation: str = "mixed",
-    updaters: Iterable = (),
-):
+    updaters: Iterable[Updater] = (),
+) -> HyperelasticProblem | MixedHyperelasticProblem:
     r"""The problem of one experiment; the activation is updated by ``set_time``.
 
     Args:

@@ -19,7 +19,7 @@ from hyperfem.problem.boundary_conditions import PrescribedDisplacement
 __all__ = ["unit_cube", "uniaxial_rollers"]
 
 
-def unit_cube(n: int, comm=MPI.COMM_WORLD) -> Domain:
+def unit_cube(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
     """The unit cube of ``n`` x ``n`` x ``n`` boxes (6 tetrahedra each), faces ``x0, x1, y0, z0``."""
     mesh = dmesh.create_unit_cube(comm, n, n, n)
     return Domain.from_locators(

@@ -14,6 +14,7 @@ Zero-length vectors cannot be normalised and raise
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from mpi4py import MPI
 
@@ -21,9 +22,13 @@ import basix.ufl
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 
 from hyperfem.errors import ParameterError, SolverError
 from hyperfem.solver.linear import LinearSolver, unique_prefix
+
+if TYPE_CHECKING:
+    from dolfinx.fem.petsc import LinearProblem
 
 __all__ = [
     "REPRESENTATIONS",
@@ -38,7 +43,7 @@ REPRESENTATIONS = ("P1", "DG0", "quadrature")
 """Supported fibre representations."""
 
 
-def fibre_space(mesh, representation: str = "DG0", quadrature_degree: int = 1) -> fem.FunctionSpace:
+def fibre_space(mesh: dmesh.Mesh, representation: str = "DG0", quadrature_degree: int = 1) -> fem.FunctionSpace:
     """The vector function space of a fibre representation.
 
     Args:
@@ -81,7 +86,7 @@ def normalize_fibres(a0: fem.Function, tol: float = 1e-12) -> fem.Function:
 
 
 def constant_fibres(
-    mesh, direction: Sequence[float], representation: str = "DG0", quadrature_degree: int = 1
+    mesh: dmesh.Mesh, direction: Sequence[float], representation: str = "DG0", quadrature_degree: int = 1
 ) -> fem.Function:
     """A uniform unit fibre field along ``direction`` (normalised)."""
     d = np.asarray(direction, dtype=float)
@@ -91,7 +96,7 @@ def constant_fibres(
 
 
 def fibres_from_callable(
-    mesh,
+    mesh: dmesh.Mesh,
     func: Callable[[np.ndarray], np.ndarray],
     representation: str = "DG0",
     quadrature_degree: int = 1,
@@ -108,7 +113,7 @@ def fibres_from_callable(
 
 
 def fibres_from_expression(
-    mesh,
+    mesh: dmesh.Mesh,
     vector: ufl.core.expr.Expr,
     representation: str = "DG0",
     quadrature_degree: int = 1,
@@ -148,8 +153,8 @@ def _project(expr: ufl.core.expr.Expr, target: fem.Function, linear_solver: Line
     check_linear_solve(problem, "fibre projection")
 
 
-def check_linear_solve(problem, what: str) -> None:
+def check_linear_solve(problem: LinearProblem, what: str) -> None:
     """Raise :class:`~hyperfem.errors.SolverError` unless the KSP of a DOLFINx ``LinearProblem`` converged."""
-    reason = int(problem.solver.getConvergedReason())
+    reason = int(problem.solver.getConvergedReason())  # type: ignore[call-overload]  # petsc4py stubs: an int
     if reason <= 0:
         raise SolverError(f"{what}: the linear solve failed (KSP reason {reason})")

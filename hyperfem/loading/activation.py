@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 
 from mpi4py import MPI
 
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 
 from hyperfem.errors import ParameterError
 
@@ -57,11 +58,11 @@ class Activation:
 
     def __init__(
         self,
-        mesh,
+        mesh: dmesh.Mesh,
         value: float | Callable[[float], float] = 0.0,
         field: fem.Function | Callable[[np.ndarray], np.ndarray] | None = None,
         name: str = "activation",
-    ):
+    ) -> None:
         self.name = name
         self._schedule = value if callable(value) else None
         initial = value(0.0) if callable(value) else value
@@ -102,7 +103,7 @@ class Activation:
 
     def set(self, value: float) -> None:
         """Set the time factor to a number in [0, 1]."""
-        self.scale.value = _check_range(value, self.name)
+        self.scale.value = _check_range(value, self.name)  # type: ignore[assignment]  # dolfinx: any array-like
 
     def update(self, t: float) -> None:
         """Evaluate the schedule at load factor/time ``t`` (no-op for a constant)."""

@@ -44,9 +44,10 @@ class AffineField:
         object.__setattr__(self, "matrix", tuple(tuple(float(a) for a in row) for row in A))
         object.__setattr__(self, "offset", tuple(float(x) for x in b))
 
-    def __call__(self, x) -> ufl.core.expr.Expr:
+    def __call__(self, x: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         components = []
-        for row, b in zip(self.matrix, self.offset):
+        assert self.offset is not None  # __post_init__ fills in the zero offset
+        for row, b in zip(self.matrix, self.offset, strict=True):
             terms = [a * x[j] for j, a in enumerate(row) if a != 0.0]
             if b != 0.0 or not terms:
                 terms.append(b)

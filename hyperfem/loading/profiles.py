@@ -18,6 +18,7 @@ where a profile is not smooth: natural must-hit times of a run. These are what
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -103,7 +104,7 @@ class Table:
             raise ParameterError(f"Table: need as many times as values (at least 2), got {len(t)} and {len(v)}")
         if not all(is_finite_number(x) for x in (*t, *v)):
             raise ParameterError("Table: times and values must be finite numbers")
-        if any(b <= a for a, b in zip(t, t[1:])):
+        if any(b <= a for a, b in itertools.pairwise(t)):
             raise ParameterError(f"Table: times must increase strictly, got {t}")
         object.__setattr__(self, "times", tuple(float(x) for x in t))
         object.__setattr__(self, "values", tuple(float(x) for x in v))
@@ -114,7 +115,7 @@ class Table:
     @property
     def kinks(self) -> tuple[float, ...]:
         """Times where the profile is not smooth (every table time)."""
-        return self.times
+        return tuple(self.times)
 
 
 @dataclass(frozen=True)

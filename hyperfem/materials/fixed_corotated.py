@@ -171,6 +171,7 @@ class PolarRotationEnergy(ABC):
         if not self.exact_tangent:
             return None
         self.bind(F)
+        assert self.field.derivative is not None  # bound with derivative=exact_tangent
         T = self.field.derivative.function
         i, j, k, l = ufl.indices(4)  # noqa: E741
         return -self.shear_modulus * T[i, j, k, l] * F[i, j] * F[k, l]

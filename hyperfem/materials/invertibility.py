@@ -25,7 +25,7 @@ callables with :func:`invertible`, or bind a law and its parameters with
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar, cast
 
 import ufl
 
@@ -52,7 +52,7 @@ def invertible(psi: Fn, value: bool = True) -> Fn:
         psi: The callable (it must accept attributes: a function, lambda or object).
         value: The flag (``False`` marks it explicitly not invertible).
     """
-    psi.invertible = bool(value)
+    cast(Any, psi).invertible = bool(value)  # functions and lambdas accept attributes
     return psi
 
 
@@ -69,7 +69,7 @@ def is_invertible(psi: Callable) -> bool:
 class _BoundLaw:
     """``psi(F) = law(F, params)`` carrying the law's ``invertible`` flag."""
 
-    def __init__(self, law: Callable, params):
+    def __init__(self, law: Callable, params: object) -> None:
         self.law = law
         self.params = params
         self.invertible = is_invertible(law)
@@ -81,7 +81,7 @@ class _BoundLaw:
         return f"with_parameters({getattr(self.law, '__name__', self.law)!r}, {self.params!r})"  # any callable
 
 
-def with_parameters(law: Callable, params) -> Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]:
+def with_parameters(law: Callable, params: object) -> Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]:
     """The energy ``psi(F) = law(F, params)``, invertible exactly when ``law`` is.
 
     Example: ``HyperelasticProblem(domain, with_parameters(robust_neo_hookean, params))``

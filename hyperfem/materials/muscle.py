@@ -43,6 +43,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import ufl
 
@@ -113,12 +114,12 @@ class MuscleParameters:
         volumetric_law(self.volumetric)
 
     @classmethod
-    def muscle(cls, **overrides) -> MuscleParameters:
+    def muscle(cls, **overrides: Any) -> MuscleParameters:
         """Seed 000 muscle: c1 = 30 kPa, c2 = 10 kPa, K = 60 kPa, T_max = 80 kPa (in Pa)."""
         return dataclasses.replace(cls(c1=30e3, c2=10e3, K=60e3, T_max=80e3), **overrides)
 
     @classmethod
-    def tendon(cls, **overrides) -> MuscleParameters:
+    def tendon(cls, **overrides: Any) -> MuscleParameters:
         """Seed 000 tendon: c1 = 60 kPa, c2 = 10 kPa, K = 80 kPa, T_max = 80 kPa; use it with α = 0."""
         return dataclasses.replace(cls(c1=60e3, c2=10e3, K=80e3, T_max=80e3), **overrides)
 

@@ -196,7 +196,7 @@ class QuadratureField:
         else:
             element = basix.ufl.quadrature_element(cell, value_shape=self.shape, degree=self.degree)
             self.space = fem.functionspace(mesh, element)
-            self.points, _ = basix.make_quadrature(cell, self.degree)
+            self.points, _ = basix.make_quadrature(cell, self.degree)  # type: ignore[assignment]  # basix: ndarrays
         self.function = fem.Function(self.space, name=name)
         tdim = mesh.topology.dim
         imap = mesh.topology.index_map(tdim)
@@ -375,14 +375,14 @@ class RotationField:
         last recomputation (the solver asks before the residual and again
         before the tangent at the same state), unless ``force``.
         """
-        if self.rotation is None:
+        if self.rotation is None or self._F_expression is None:  # bind sets both
             raise ParameterError(f"{self.name}: refresh before the material was bound to a deformation gradient")
         if self._functions:
             state = [f.x.array for f in self._functions]
             if (
                 not force
                 and self._last_state is not None
-                and all(np.array_equal(a, b) for a, b in zip(state, self._last_state))
+                and all(np.array_equal(a, b) for a, b in zip(state, self._last_state, strict=True))
             ):
                 return
             self._last_state = [a.copy() for a in state]
@@ -395,6 +395,6 @@ class RotationField:
 
     def deformation_gradients(self) -> np.ndarray:
         """The current :math:`F` at the points, shape ``(n, d, d)`` (order of :meth:`QuadratureField.assign`)."""
-        if self.rotation is None:
+        if self.rotation is None or self._F_expression is None:  # bind sets both
             raise ParameterError(f"{self.name}: not bound to a deformation gradient")
         return self.rotation.evaluate(self._F_expression)
