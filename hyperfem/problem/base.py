@@ -24,7 +24,7 @@ and ``state_hooks`` (callables to run at every new state before assembly).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import ufl
@@ -33,9 +33,11 @@ from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
 from hyperfem.mesh.budget import check_problem_size
+from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.orientation import check_cell_volumes
-from hyperfem.problem.boundary_conditions import DirichletAgreement
-from hyperfem.problem.loads import Load, load_terms
+from hyperfem.problem.boundary_conditions import DirichletAgreement, _CompiledDirichlet
+from hyperfem.problem.loads import Load, LoadTerms, load_terms
+from hyperfem.problem.protocol import Updater
 from hyperfem.problem.quadrature import unify_quadrature
 
 __all__ = ["EnergyProblem"]
@@ -54,13 +56,31 @@ class EnergyProblem:
     invertible = False
     """Whether every energy is finite and restoring for :math:`J \\le 0` (the solver may drop its inversion guard)."""
 
-    state_hooks: tuple = ()
+    state_hooks: tuple[Callable[[], None], ...] = ()
     """Callables ``hook()`` the solver runs at every new state before assembling (e.g. polar-rotation refreshes)."""
 
     tangent_correction: ufl.Form | None = None
     """Form whose second variation was added to :attr:`jacobian` only (``None``: the plain derivative)."""
 
-    def _check_domain(self, domain, fields: Sequence[tuple[int, int]], quadrature_degree: int) -> None:
+    # Set by the subclass before _derive_forms:
+    domain: Domain
+    u: fem.Function
+    F: ufl.core.expr.Expr
+    degree: int
+    quadrature_degree: int
+    energy_internal: ufl.Form
+    _dirichlet: list[_CompiledDirichlet]
+    # Set by _derive_forms:
+    energy_external: ufl.Form
+    follower_residual: ufl.Form | None
+    energy: ufl.Form
+    residual: ufl.Form
+    jacobian: ufl.Form
+    conservative: bool
+    _updaters: list[Updater]
+    _loads: LoadTerms
+
+    def _check_domain(self, domain: Domain, fields: Sequence[tuple[int, int]], quadrature_degree: int) -> None:
         """Refuse cells without volume and spaces too large for the machine, before building them (collective).
 
         Subclasses call it before their function spaces exist. Too large: the
@@ -82,13 +102,13 @@ class EnergyProblem:
 
     def _derive_forms(
         self,
-        displacement,
-        test,
-        test_displacement,
-        trial,
+        displacement: ufl.core.expr.Expr,
+        test: ufl.Argument,
+        test_displacement: ufl.core.expr.Expr,
+        trial: ufl.Argument,
         loads: Sequence[Load],
         conservative: bool | None = None,
-        updaters: Iterable = (),
+        updaters: Iterable[Updater] = (),
         tangent_correction: ufl.Form | None = None,
     ) -> None:
         md = {"quadrature_degree": self.quadrature_degree}
@@ -99,9 +119,11 @@ class EnergyProblem:
         zero = fem.Constant(domain.mesh, 0.0) * ufl.dot(displacement, displacement) * domain.dx(metadata=md)
         external = self._loads.external if self._loads.external is not None else zero
         # One rule per integral type across energy, loads and follower terms (FFCx 0.11).
-        self.energy_internal, self.energy_external, self.follower_residual, tangent_correction = unify_quadrature(
+        internal, external, self.follower_residual, tangent_correction = unify_quadrature(
             self.energy_internal, external, self._loads.follower, tangent_correction
         )
+        assert internal is not None and external is not None  # unify_quadrature maps None to None only
+        self.energy_internal, self.energy_external = internal, external
         self.conservative = (self.follower_residual is None) if conservative is None else conservative
         self.energy = self.energy_internal - self.energy_external
         self.residual = ufl.derivative(self.energy, self.u, test)
@@ -217,4 +239,4 @@ class EnergyProblem:
         import basix
 
         pts, _ = basix.make_quadrature(self.domain.mesh.basix_cell(), self.quadrature_degree)
-        return pts
+        return pts  # type: ignore[return-value]  # basix declares ArrayLike, returns an ndarray

@@ -125,6 +125,7 @@ class _CompiledDirichlet:
         self._boundary_dofs = []  # per part: blocked dofs of g's space on the boundary
         whole = components == list(range(gdim))
         is_subspace = len(V.component()) > 0
+        spaces: list[tuple[fem.FunctionSpace, int | None, fem.FunctionSpace | None]]
         if whole:
             spaces = [(V, None, V.collapse()[0] if is_subspace else None)]
         else:
@@ -155,7 +156,7 @@ class _CompiledDirichlet:
         if value is not None and not self._parametric:
             self._interpolate(value, None)
 
-    def _interpolate(self, value, s: float | None) -> None:
+    def _interpolate(self, value: Sequence[float] | Callable[..., np.ndarray], s: float | None) -> None:
         where = f"PrescribedDisplacement on {self.bc.boundary!r}"
         at = "" if s is None else f" at load factor/time {s:g}"
         comm = self._parts[0][0].function_space.mesh.comm
@@ -185,10 +186,10 @@ class _CompiledDirichlet:
         if bad:
             raise ParameterError(f"{where}: the value{at} is not finite (nan or inf) at {bad} boundary value(s)")
 
-    def _interpolate_parts(self, value, s: float | None) -> None:
+    def _interpolate_parts(self, value: Sequence[float] | Callable[..., np.ndarray], s: float | None) -> None:
         for g, _, comp, components in self._parts:
             if callable(value):
-                f = (
+                f: Callable[..., np.ndarray] = (
                     (lambda x, s=s: np.atleast_2d(value(x, s)))
                     if self._parametric
                     else (lambda x: np.atleast_2d(value(x)))

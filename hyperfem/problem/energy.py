@@ -10,13 +10,17 @@ error. The generic checks (finite numbers, names, callables) are in
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import ufl
 
 from hyperfem.errors import HyperfemError, ParameterError
 from hyperfem.problem.protocol import EnergyProtocol
 from hyperfem.validation import check_callable, is_real
+
+if TYPE_CHECKING:
+    from hyperfem.mesh.domain import Domain
 
 __all__ = ["as_energy", "check_energy_callable", "check_region_coverage", "scalar_energy"]
 
@@ -143,7 +147,7 @@ def as_energy(psi: Callable) -> EnergyProtocol:
     return _UserEnergy(psi)
 
 
-def check_region_coverage(domain, regions, where: str) -> None:
+def check_region_coverage(domain: Domain, regions: Sequence[str], where: str) -> None:
     """Every cell must belong to one of the material ``regions`` (names of cell groups).
 
     Cells outside every region carry no energy: their dofs make the tangent

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import TypeVar
 
 import ufl
 from dolfinx import fem
@@ -67,7 +68,10 @@ def default_quadrature_degree(degree: int, cell_type: CellType | None = None) ->
     return volume_quadrature_degree(degree, cell_type)
 
 
-def as_sequence(items, what: str, where: str) -> list:
+T = TypeVar("T")
+
+
+def as_sequence(items: Iterable[T], what: str, where: str) -> list[T]:
     """``items`` as a list; a single condition or load (or a non-sequence) is an error."""
     # Boundary: items is user input of any type; only iterability is asked of it.
     if isinstance(items, (str, bytes, Mapping)) or not hasattr(items, "__iter__"):
@@ -209,30 +213,32 @@ class HyperelasticProblem(EnergyProblem):
                 )
 
 
-def _check_arguments(domain, degree, quadrature_degree, invertible, where: str) -> None:
+def _check_arguments(domain: object, degree: object, quadrature_degree: object, invertible: object, where: str) -> None:
     """The domain, the degrees and ``invertible`` of a :class:`HyperelasticProblem`."""
     if not isinstance(domain, Domain):
         raise ParameterError(
             f"{where}: domain must be a hyperfem Domain (hf.read_mesh, hf.beam_mesh, Domain.from_locators), "
             f"got {type(domain).__name__}"
         )
-    if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 1):
+    if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and int(degree) >= 1):
         raise ParameterError(f"{where}: degree must be an integer >= 1, got {degree!r}")
     if quadrature_degree is not None and not (
         isinstance(quadrature_degree, numbers.Integral)
         and not isinstance(quadrature_degree, bool)
-        and quadrature_degree >= 1
+        and int(quadrature_degree) >= 1
     ):
         raise ParameterError(f"{where}: quadrature_degree must be an integer >= 1 or None, got {quadrature_degree!r}")
     if invertible is not None and not isinstance(invertible, bool):
         raise ParameterError(f"{where}: invertible must be True, False or None, got {invertible!r}")
 
 
-def _material_regions(domain: Domain, material, where: str) -> dict[str | None, EnergyDensity]:
+def _material_regions(
+    domain: Domain, material: EnergyDensity | Mapping[str, EnergyDensity], where: str
+) -> dict[str | None, EnergyDensity]:
     """Region name (``None``: the whole domain) → energy; a mapping's regions must cover the mesh (collective)."""
     if callable(material):
         return {None: material}
     if not material:
         raise ParameterError(f"{where}: material mapping is empty")
     check_region_coverage(domain, list(material), where)
-    return dict(material)
+    return {name: psi for name, psi in material.items()}

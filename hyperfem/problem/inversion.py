@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 __all__ = ["QuadratureMinimum"]
@@ -28,7 +29,7 @@ class QuadratureMinimum:
         points: Reference quadrature points (e.g. ``problem.quadrature_points()``).
     """
 
-    def __init__(self, mesh, expr: ufl.core.expr.Expr, points: np.ndarray):
+    def __init__(self, mesh: dmesh.Mesh, expr: ufl.core.expr.Expr, points: np.ndarray) -> None:
         self.mesh = mesh
         self._expr = fem.Expression(expr, points)
         tdim = mesh.topology.dim

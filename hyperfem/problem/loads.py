@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import ufl
 from dolfinx import fem
@@ -29,6 +30,9 @@ from hyperfem.kinematics import cofactor
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.quadrature import load_quadrature_degree
 from hyperfem.validation import check_callable, check_finite_scalar, check_finite_vector, check_name
+
+if TYPE_CHECKING:
+    from hyperfem.mesh.domain import Domain
 
 __all__ = ["BodyForce", "DeadTraction", "FollowerPressure", "FollowerTraction", "Load", "LoadTerms", "load_terms"]
 
@@ -110,7 +114,7 @@ class BodyForce:
 Load = DeadTraction | FollowerTraction | FollowerPressure | BodyForce
 
 
-def _check_load(load, name: str | None) -> None:
+def _check_load(load: Load, name: str | None) -> None:
     """Validate a load on construction: group name, finite value(s), callable profile."""
     kind = type(load).__name__
     body = isinstance(load, BodyForce)
@@ -127,7 +131,9 @@ LOAD_DEGREE_CAP_OFFSET = 4
 """Non-polynomial load integrands get at most the volume degree plus this."""
 
 
-def _vector(value, x, gdim: int, what: str):
+def _vector(
+    value: Sequence[float] | Callable[..., Any], x: ufl.core.expr.Expr, gdim: int, what: str
+) -> ufl.core.expr.Expr:
     if callable(value):
         return value(x)
     vals = [float(v) for v in value]
@@ -147,18 +153,26 @@ class LoadTerms:
         parts: One ``(load, form)`` per load (work or residual term; for diagnostics).
     """
 
-    scales: list = field(default_factory=list)
-    external: object = None
-    follower: object = None
-    parts: list = field(default_factory=list)
+    scales: list[tuple[fem.Constant, Load]] = field(default_factory=list)
+    external: ufl.Form | None = None
+    follower: ufl.Form | None = None
+    parts: list[tuple[Load, ufl.Form]] = field(default_factory=list)
 
     def set(self, s: float) -> None:
         """Set every load magnitude for load factor/time ``s``."""
         for c, load in self.scales:
-            c.value = float(load.profile(s))
+            c.value = float(load.profile(s))  # type: ignore[assignment]  # dolfinx: any array-like
 
 
-def load_terms(loads, domain, u, v, F, metadata: dict, where: str = "problem") -> LoadTerms:
+def load_terms(
+    loads: Sequence[Load],
+    domain: Domain,
+    u: ufl.core.expr.Expr,
+    v: ufl.core.expr.Expr,
+    F: ufl.core.expr.Expr,
+    metadata: dict[str, Any],
+    where: str = "problem",
+) -> LoadTerms:
     """Build the external-work and follower-residual terms of ``loads``.
 
     Each term gets its own quadrature degree
@@ -182,7 +196,7 @@ def load_terms(loads, domain, u, v, F, metadata: dict, where: str = "problem") -
     volume_degree = int(metadata["quadrature_degree"])
     cap = volume_degree + LOAD_DEGREE_CAP_OFFSET
 
-    def md(integrand) -> dict:
+    def md(integrand: ufl.core.expr.Expr) -> dict[str, Any]:
         return {**metadata, "quadrature_degree": load_quadrature_degree(integrand, volume_degree, cap)}
 
     for load in loads:

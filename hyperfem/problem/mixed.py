@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import basix.ufl
 import numpy as np
@@ -175,13 +176,14 @@ class MixedHyperelasticProblem(EnergyProblem):
                 f"MixedHyperelasticProblem: need degree >= 2 and 1 <= pressure_degree < degree, "
                 f"got {degree}/{pressure_degree}"
             )
+        regions: dict[str | None, SplitEnergy]
         if isinstance(material, SplitEnergy):
             regions = {None: material}
         elif not material:
             raise ParameterError("MixedHyperelasticProblem: material mapping is empty")
         else:
-            regions = dict(material)
-            check_region_coverage(domain, list(regions), "MixedHyperelasticProblem")
+            regions = {name: m for name, m in material.items()}
+            check_region_coverage(domain, list(material), "MixedHyperelasticProblem")
         self.domain = domain
         mesh = domain.mesh
         gdim = domain.gdim
@@ -210,7 +212,7 @@ class MixedHyperelasticProblem(EnergyProblem):
         self.theta = 1.0 + dilatation
         self.F = ufl.Identity(gdim) + ufl.grad(u)
 
-        def dx(name):
+        def dx(name: str | None) -> ufl.Measure:
             return domain.dx(name, metadata=md)
 
         self.energy_internal = sum(m.mixed_energy(self.F, p, self.theta) * dx(n) for n, m in regions.items())
@@ -220,7 +222,7 @@ class MixedHyperelasticProblem(EnergyProblem):
             (J - self.theta) ** 2 * dx(None),
             sum((m.isochoric(self.F) + m.volumetric_energy(J)) * dx(n) for n, m in regions.items()),
         )
-        self._check_forms = None
+        self._check_forms: tuple[fem.Form, ...] | None = None
         self.material = material
         self._regions = regions
         self._md = md
@@ -274,11 +276,12 @@ class MixedHyperelasticProblem(EnergyProblem):
             d = self.domain.gdim
             basis = _deviatoric_basis(d)
             F = ufl.variable(ufl.Identity(d))
-            i, j, k, l = ufl.indices(4)
-            moduli = {}
+            i, j, p, q = ufl.indices(4)
+            moduli: dict[str | None, float] = {}
             for name, m in self._regions.items():
                 A = ufl.diff(ufl.diff(m.isochoric(F), F), F)
-                two_mu = sum(ufl.as_matrix(D)[i, j] * A[i, j, k, l] * ufl.as_matrix(D)[k, l] for D in basis) / len(basis)
+                two_mu = sum(ufl.as_matrix(D)[i, j] * A[i, j, p, q] * ufl.as_matrix(D)[p, q] for D in basis)
+                two_mu = two_mu / len(basis)
                 dx = self.domain.dx(name, metadata=self._md)
                 local = np.array(
                     [
@@ -378,8 +381,8 @@ def solid_problem(
     *,
     formulation: str = "mixed",
     degree: int | None = None,
-    **kwargs,
-):
+    **kwargs: Any,
+) -> HyperelasticProblem | MixedHyperelasticProblem:
     """Build the problem of a split energy in the chosen formulation.
 
     Args:

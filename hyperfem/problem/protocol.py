@@ -143,10 +143,21 @@ class EnergyProtocol(Protocol):
             fields (``None``: it holds none).
     """
 
-    invertible: bool
-    state_hooks: Sequence[Callable[[], None]]
-    updaters: Sequence[Updater]
-    quadrature_rule_degree: int | None
+    @property
+    def invertible(self) -> bool:
+        """Whether the energy is finite and restoring for :math:`J \\le 0`."""
+
+    @property
+    def state_hooks(self) -> Sequence[Callable[[], None]]:
+        """Callables ``hook()`` the solver runs at every new state before assembling."""
+
+    @property
+    def updaters(self) -> Sequence[Updater]:
+        """Objects with ``update(t)`` the problem moves with its loads."""
+
+    @property
+    def quadrature_rule_degree(self) -> int | None:
+        """Degree of the rule whose points hold the energy's fields (``None``: none)."""
 
     def __call__(self, F: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """The energy density at the deformation gradient ``F``."""

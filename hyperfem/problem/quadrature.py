@@ -28,6 +28,8 @@ r"""Quadrature degrees of the terms of a problem, chosen in one place.
 
 from __future__ import annotations
 
+from typing import overload
+
 import ufl
 from dolfinx import mesh as dmesh
 from ufl.algorithms import estimate_total_polynomial_degree
@@ -126,7 +128,7 @@ def unify_quadrature(*forms: ufl.Form | None) -> tuple[ufl.Form | None, ...]:
                 t = itg.integral_type()
                 highest[t] = max(highest.get(t, q), q)
 
-    def rebuild(form):
+    def rebuild(form: ufl.Form | None) -> ufl.Form | None:
         if form is None:
             return None
         out = []
@@ -141,6 +143,10 @@ def unify_quadrature(*forms: ufl.Form | None) -> tuple[ufl.Form | None, ...]:
     return tuple(rebuild(f) for f in forms)
 
 
+@overload
+def unify_cell_quadrature(form: ufl.Form, metadata: dict) -> ufl.Form: ...
+@overload
+def unify_cell_quadrature(form: None, metadata: dict) -> None: ...
 def unify_cell_quadrature(form: ufl.Form | None, metadata: dict) -> ufl.Form | None:
     """Put every cell integral of ``form`` on the rule ``metadata`` (e.g. the mass rule of dynamics).
 
