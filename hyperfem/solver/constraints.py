@@ -13,13 +13,25 @@ space, since rigid motions are in every Lagrange space.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from mpi4py import MPI
 from dolfinx import fem
 
+if TYPE_CHECKING:
+    from hyperfem.problem.protocol import SolidProblem
+
 __all__ = ["rigid_modes", "unconstrained_rigid_modes"]
 
-_NAMES_3D = ["translation x", "translation y", "translation z", "rotation about x", "rotation about y", "rotation about z"]
+_NAMES_3D = [
+    "translation x",
+    "translation y",
+    "translation z",
+    "rotation about x",
+    "rotation about y",
+    "rotation about z",
+]
 _NAMES_2D = ["translation x", "translation y", "rotation"]
 
 
@@ -44,7 +56,7 @@ def rigid_modes(gdim: int) -> list:
     ]
 
 
-def unconstrained_rigid_modes(problem, tol: float = 1e-10) -> list[str]:
+def unconstrained_rigid_modes(problem: SolidProblem, tol: float = 1e-10) -> list[str]:
     """Names of the rigid-body motions left free by ``problem.bcs`` (empty when all are constrained).
 
     Args:
@@ -79,5 +91,6 @@ def unconstrained_rigid_modes(problem, tol: float = 1e-10) -> list[str]:
     for k in np.flatnonzero(w < tol):
         v = np.abs(vecs[:, k])
         j = int(np.argmax(v))
-        free.append(names[j] if v[j] > 0.99 else "a combination of " + ", ".join(names[i] for i in np.flatnonzero(v > 0.1)))
+        combination = "a combination of " + ", ".join(names[i] for i in np.flatnonzero(v > 0.1))
+        free.append(names[j] if v[j] > 0.99 else combination)
     return free

@@ -274,7 +274,9 @@ class ComposedFilters:
         return total
 
     @staticmethod
-    def _agreed(comm, step_filter, x: PETSc.Vec, y: PETSc.Vec) -> tuple[float, str, str]:
+    def _agreed(
+        comm: MPI.Comm, step_filter: NewtonStepFilter, x: PETSc.Vec, y: PETSc.Vec
+    ) -> tuple[float, str, str]:
         """One filter's fraction, refusal message and error, the same on every rank (collective).
 
         The inversion filters are collective already; a filter that looks at its own cells
@@ -322,14 +324,14 @@ class ComposedFilters:
             step_filter.min_step_fraction = value
 
 
-def _checked_fraction(fraction, step_filter) -> float:
+def _checked_fraction(fraction: object, step_filter: NewtonStepFilter) -> float:
     """``fraction`` as a float in [0, 1] (0 included, see below), or a :class:`ParameterError` naming the filter.
 
     0 is let through (it zeroes the step, as the exact filter does when its
     critical step underflows); a filter that finds no admissible step should
     raise :class:`NoAdmissibleStep` instead.
     """
-    if isinstance(fraction, numbers.Real) and not isinstance(fraction, bool) and 0.0 <= fraction <= 1.0:
+    if isinstance(fraction, numbers.Real) and not isinstance(fraction, bool) and 0.0 <= float(fraction) <= 1.0:
         return float(fraction)
     raise ParameterError(
         f"{type(step_filter).__name__}.step_fraction returned {fraction!r}; a step fraction must be in [0, 1] "

@@ -53,9 +53,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+import ufl
+from mpi4py import MPI
 from petsc4py import PETSc
+from dolfinx import fem
 
-from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepState
+from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepState
 
 __all__ = [
     "DIRECT",
@@ -219,21 +222,21 @@ class LinearSolver:
 
     options: Mapping[str, object] = field(default_factory=lambda: dict(DIRECT))
     near_nullspace: Callable[[PETSc.Mat], None] | None = None
-    preconditioner_shift: object | None = None
+    preconditioner_shift: ufl.Form | None = None
     configure: Callable[[PETSc.KSP], None] | None = None
 
 
-    def ksp(self, comm, A: PETSc.Mat | None = None, kind: str = "linear") -> PETSc.KSP:
+    def ksp(self, comm: MPI.Comm, A: PETSc.Mat | None = None, kind: str = "linear") -> PETSc.KSP:
         """A KSP configured from :attr:`options` under a unique prefix (operators set if ``A`` is given).
 
         The options are pushed for ``setFromOptions`` and removed again.
         """
         prefix = unique_prefix(kind)
-        ksp = PETSc.KSP().create(comm)
+        ksp = PETSc.KSP().create(comm)  # type: ignore[arg-type]  # petsc4py accepts an mpi4py communicator
         ksp.setOptionsPrefix(prefix)
         opts = PETSc.Options()
         for key, value in self.options.items():
-            opts[f"{prefix}{key}"] = value
+            opts[f"{prefix}{key}"] = value  # type: ignore[index]  # petsc4py stubs lack Options.__setitem__
         try:
             ksp.setFromOptions()
         finally:
@@ -251,12 +254,12 @@ class LinearSolver:
             self.near_nullspace(A)
         ksp.setOperators(A, A if P is None else P)
 
-    def solve(self, comm, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, kind: str = "linear") -> int:
+    def solve(self, comm: MPI.Comm, A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, kind: str = "linear") -> int:
         """One solve ``A x = b`` with a throw-away KSP; returns the KSP converged reason."""
         ksp = self.ksp(comm, A, kind)
         try:
             ksp.solve(b, x)
-            return int(ksp.getConvergedReason())
+            return int(ksp.getConvergedReason())  # type: ignore[call-overload]  # petsc4py stubs: an int
         finally:
             ksp.destroy()
 
@@ -277,28 +280,29 @@ class ShiftedPreconditioner:
         matrix: The preconditioning matrix (updated by each call).
     """
 
-    def __init__(self, A: PETSc.Mat, shift):
+    def __init__(self, A: PETSc.Mat, shift: fem.Form) -> None:
         import dolfinx.fem.petsc as fpetsc
 
         self._shift = A.duplicate()
-        fpetsc.assemble_matrix(self._shift, shift)
+        fpetsc.assemble_matrix(self._shift, shift)  # type: ignore[arg-type]  # dolfinx: singledispatch (Mat, Form)
         self._shift.assemble()
         self.matrix = self._shift.duplicate(copy=True)
 
     def __call__(self, A: PETSc.Mat) -> PETSc.Mat:
         """:attr:`matrix` set to a copy of the assembled tangent ``A`` plus the shift."""
         P = self.matrix
-        A.copy(P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        P.axpy(1.0, self._shift, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+        A.copy(P, structure=same)  # type: ignore[arg-type]  # petsc4py: int enums
+        P.axpy(1.0, self._shift, structure=same)  # type: ignore[arg-type]  # petsc4py: int enums
         return P
 
 
-def _global_size(V) -> int:
+def _global_size(V: fem.FunctionSpace) -> int:
     imap = V.dofmap.index_map
     return int(imap.size_global * V.dofmap.index_map_bs)
 
 
-def rigid_body_modes(V, A: PETSc.Mat) -> list[PETSc.Vec]:
+def rigid_body_modes(V: fem.FunctionSpace, A: PETSc.Mat) -> list[PETSc.Vec]:
     """Orthonormal rigid-body modes of the blocked displacement space ``V`` as vectors of ``A``'s layout.
 
     Translations :math:`e_i` and rotations :math:`e_i \\times X` evaluated at the
@@ -310,25 +314,25 @@ def rigid_body_modes(V, A: PETSc.Mat) -> list[PETSc.Vec]:
     bs = V.dofmap.index_map_bs
     n_owned = V.dofmap.index_map.size_local
     x = V.tabulate_dof_coordinates()[:n_owned].T
-    vectors = []
+    vectors: list[PETSc.Vec] = []
     for mode in rigid_modes(bs):
         vec = A.createVecRight()
         vec.array_w[:] = np.asarray(mode(x)).T.reshape(-1)
         for other in vectors:
             vec.axpy(-vec.dot(other), other)
-        vec.scale(1.0 / vec.norm())
+        vec.scale(1.0 / vec.norm())  # type: ignore[operator]  # petsc4py: the 2-norm is a float
         vectors.append(vec)
     return vectors
 
 
-def _near_nullspace_hook(V) -> Callable[[PETSc.Mat], None]:
+def _near_nullspace_hook(V: fem.FunctionSpace) -> Callable[[PETSc.Mat], None]:
     def attach(A: PETSc.Mat) -> None:
         A.setNearNullSpace(PETSc.NullSpace().create(vectors=rigid_body_modes(V, A), comm=A.comm))
 
     return attach
 
 
-def _owned_global(W, local: np.ndarray) -> np.ndarray:
+def _owned_global(W: fem.FunctionSpace, local: np.ndarray) -> np.ndarray:
     """Global indices of the owned entries of the local dof indices ``local`` of the (unblocked) space ``W``."""
     imap = W.dofmap.index_map
     bs = W.dofmap.index_map_bs
@@ -336,11 +340,13 @@ def _owned_global(W, local: np.ndarray) -> np.ndarray:
     return local[local < n_owned] + imap.local_range[0] * bs
 
 
-def _fieldsplit_configure(problem) -> Callable[[PETSc.KSP], None]:
-    """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``."""
+def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> Callable[[PETSc.KSP], None]:
+    """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``.
+
+    ``base`` is the three-field problem: ``problem`` itself, or the body of a time step ``problem``.
+    """
     from hyperfem.solver.constraints import rigid_modes
 
-    base = problem.base if isinstance(problem, TimeStepState) else problem
     W = problem.u.function_space
     fields = base.field_dofs()
     comm = W.mesh.comm
@@ -358,15 +364,15 @@ def _fieldsplit_configure(problem) -> Callable[[PETSc.KSP], None]:
         pc = ksp.getPC()
         if pc.getType() != PETSc.PC.Type.FIELDSPLIT:
             return  # options overrode the split (e.g. pc_type lu)
-        is_u = PETSc.IS().createGeneral(u_global.astype(PETSc.IntType), comm=comm)
-        is_p = PETSc.IS().createGeneral(p_global.astype(PETSc.IntType), comm=comm)
-        vectors = []
+        is_u = PETSc.IS().createGeneral(u_global.astype(PETSc.IntType), comm=comm)  # type: ignore[arg-type]  # arrays
+        is_p = PETSc.IS().createGeneral(p_global.astype(PETSc.IntType), comm=comm)  # type: ignore[arg-type]  # arrays
+        vectors: list[PETSc.Vec] = []
         for mode in rigid_modes(gdim):
             vec = PETSc.Vec().createMPI((len(u_global), PETSc.DETERMINE), comm=comm)
             vec.array_w[:] = np.asarray(mode(X))[component, np.arange(len(component))]
             for other in vectors:
                 vec.axpy(-vec.dot(other), other)
-            vec.scale(1.0 / vec.norm())
+            vec.scale(1.0 / vec.norm())  # type: ignore[operator]  # petsc4py: the 2-norm is a float
             vectors.append(vec)
         is_u.compose("nearnullspace", PETSc.NullSpace().create(vectors=vectors, comm=comm))
         pc.setFieldSplitIS(("u", is_u), ("p", is_p))
@@ -375,7 +381,7 @@ def _fieldsplit_configure(problem) -> Callable[[PETSc.KSP], None]:
 
 
 def choose_linear_solver(
-    problem, threshold: int | None = None, mixed_threshold: int = MIXED_DIRECT_THRESHOLD
+    problem: SolidProblem, threshold: int | None = None, mixed_threshold: int = MIXED_DIRECT_THRESHOLD
 ) -> LinearSolver:
     """The linear solver for ``problem`` (see the module docstring for the rule).
 
@@ -394,7 +400,7 @@ def choose_linear_solver(
         return LinearSolver(
             dict(MIXED_ITERATIVE),
             preconditioner_shift=base.schur_preconditioner_term(),
-            configure=_fieldsplit_configure(problem),
+            configure=_fieldsplit_configure(problem, base),
         )
     degree = V.ufl_element().embedded_superdegree
     if threshold is None:  # by degree: AMG needs far more Krylov iterations on P3 and above

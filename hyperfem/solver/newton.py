@@ -45,10 +45,12 @@ from __future__ import annotations
 
 import time
 import weakref
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Any, TypeVar, cast
 
 import numpy as np
+import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -96,6 +98,11 @@ __all__ = [
 ]
 
 _DOMAIN = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
+_T = TypeVar("_T")
+_SolverRef = Callable[[], "NewtonSolver"]
+"""How the SNES callbacks reach their solver: a weak reference, called while the solver exists."""
+_Callback = tuple[Callable[..., None], tuple[Any, ...], dict[str, Any]]
+"""A SNES callback as petsc4py gives it back: function, arguments, keyword arguments."""
 
 
 @dataclass
@@ -256,7 +263,7 @@ class NewtonSolver:
     def __init__(
         self,
         problem: SolidProblem,
-        petsc_options: dict | None = None,
+        petsc_options: dict[str, Any] | None = None,
         *,
         prefix: str | None = None,
         energy_line_search: bool | None = None,
@@ -268,12 +275,12 @@ class NewtonSolver:
         roundoff_factor: float = ROUNDOFF_FACTOR,
         check_rigid_motion: bool = True,
         linear_solver: LinearSolver | None = None,
-        jacobian=None,
-        state_hooks=(),
-        form_compiler_options: dict | None = None,
-        jit_options: dict | None = None,
+        jacobian: ufl.Form | None = None,
+        state_hooks: Iterable[Callable[[], None]] = (),
+        form_compiler_options: dict[str, Any] | None = None,
+        jit_options: dict[str, Any] | None = None,
         step_filters: Iterable[NewtonStepFilter] = (),
-    ):
+    ) -> None:
         self.problem = problem
         self.comm = problem.domain.comm
         self.prefix = solver_prefix(prefix)
@@ -294,7 +301,8 @@ class NewtonSolver:
         # Callbacks hold the solver weakly: a strong reference from the SNES
         # back to self would be a cycle through PETSc that Python never frees
         # (leaking the factorisation), or frees at different times per rank.
-        me = weakref.ref(self)
+        # The SNES calls back only while its solver exists, so the reference is typed as always alive.
+        me = cast(_SolverRef, weakref.ref(self))
         self._wire_assembly(me)
         self._objective = self._energy_objective(me, energy_line_search, energy_roundoff_rtol, compiler)
         self.min_jacobian = resolve_min_jacobian(min_jacobian, problem)
@@ -306,10 +314,16 @@ class NewtonSolver:
         self.snes.setLineSearchPreCheck(lambda x, y: me()._guarded(me()._precheck, x, y))
         self.predictor = bool(predictor)
         self._boundary_predictor = BoundaryPredictor(problem, self._nlp)
-        self.snes.setConvergenceTest(lambda snes_, it, norms: me()._guarded(me()._converged, snes_, it, norms))
+
+        def test(snes_: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
+            return me()._guarded(me()._converged, snes_, it, norms)
+
+        self.snes.setConvergenceTest(test)  # type: ignore[arg-type]  # petsc4py stubs: the reason is an int
 
     # -- construction ------------------------------------------------------
-    def _nonlinear_problem(self, jacobian, petsc_options: dict | None, compiler: dict) -> fpetsc.NonlinearProblem:
+    def _nonlinear_problem(
+        self, jacobian: ufl.Form, petsc_options: dict[str, Any] | None, compiler: dict[str, Any]
+    ) -> fpetsc.NonlinearProblem:
         """The DOLFINx problem under :attr:`prefix` with :attr:`options`; rejected options as a ParameterError."""
         problem = self.problem
         try:
@@ -326,7 +340,7 @@ class NewtonSolver:
             clean_options(self.prefix, self.options)
             raise ParameterError(f"NewtonSolver: {describe_option_error(exc, petsc_options or {})}") from None
 
-    def _attach_linear_solver(self, compiler: dict) -> ShiftedPreconditioner | None:
+    def _attach_linear_solver(self, compiler: dict[str, Any]) -> ShiftedPreconditioner | None:
         """Apply the linear solver's hooks; its shifted preconditioner, if it has a shift."""
         linear = self.linear_solver
         if linear.near_nullspace is not None:
@@ -337,7 +351,7 @@ class NewtonSolver:
             return None
         return ShiftedPreconditioner(self._nlp.A, fem.form(linear.preconditioner_shift, **compiler))
 
-    def _wire_assembly(self, me: weakref.ref) -> None:
+    def _wire_assembly(self, me: _SolverRef) -> None:
         """The monitor, the state hooks before each assembly, and the shifted preconditioning matrix."""
         self.snes.setMonitor(lambda _snes, _it, norm: me()._norms.append(float(norm)))
         if self.state_hooks:
@@ -345,36 +359,38 @@ class NewtonSolver:
         if self._preconditioner is not None:
             self._shift_jacobian(me)
 
-    def _hook_assembly(self, me: weakref.ref) -> None:
+    def _hook_assembly(self, me: _SolverRef) -> None:
         """Run the state hooks before DOLFINx assembles the residual and the tangent."""
         snes = self.snes
-        b, (residual, _, residual_kw) = snes.getFunction()
-        _, _, (jacobian, _, jacobian_kw) = snes.getJacobian()
+        b, (residual, _, residual_kw) = cast(tuple[PETSc.Vec, _Callback], snes.getFunction())  # petsc4py stubs
+        _, _, (jacobian, _, jacobian_kw) = cast(tuple[PETSc.Mat, PETSc.Mat, _Callback], snes.getJacobian())
 
-        def hooked_residual(snes_, x, b_):
+        def hooked_residual(snes_: PETSc.SNES, x: PETSc.Vec, b_: PETSc.Vec) -> None:
             me()._guarded(me()._set_state, x)
             residual(snes_, x, b_, **residual_kw)
 
-        def hooked_jacobian(snes_, x, A, P):
+        def hooked_jacobian(snes_: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
             me()._guarded(me()._set_state, x)
             jacobian(snes_, x, A, P, **jacobian_kw)
 
         snes.setFunction(hooked_residual, b)
         snes.setJacobian(hooked_jacobian, self._nlp.A, self._nlp.P_mat)
 
-    def _shift_jacobian(self, me: weakref.ref) -> None:
+    def _shift_jacobian(self, me: _SolverRef) -> None:
         """Assemble the tangent, then set the preconditioning matrix to it plus the shift."""
         snes = self.snes
-        _, _, (jacobian, _, jacobian_kw) = snes.getJacobian()
+        _, _, (jacobian, _, jacobian_kw) = cast(tuple[PETSc.Mat, PETSc.Mat, _Callback], snes.getJacobian())
+        preconditioner = self._preconditioner  # holds no reference to the solver
+        assert preconditioner is not None  # _wire_assembly calls this only when there is a shift
 
-        def shifted_jacobian(snes_, x, A, P):
+        def shifted_jacobian(snes_: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
             jacobian(snes_, x, A, None, **jacobian_kw)
-            me()._preconditioner(A)
+            preconditioner(A)
 
-        snes.setJacobian(shifted_jacobian, self._nlp.A, self._preconditioner.matrix)
+        snes.setJacobian(shifted_jacobian, self._nlp.A, preconditioner.matrix)
 
     def _energy_objective(
-        self, me: weakref.ref, energy_line_search: bool | None, rtol: float, compiler: dict
+        self, me: _SolverRef, energy_line_search: bool | None, rtol: float, compiler: dict[str, Any]
     ) -> EnergyObjective | None:
         """Compile :math:`\\Pi`; attach it as the SNES objective when the line search judges by energy."""
         problem = self.problem
@@ -395,7 +411,12 @@ class NewtonSolver:
         objective = EnergyObjective(
             rtol, lambda x: me()._set_state(x), lambda: me()._energies(), self._nlp.x, self._nlp.b
         )
-        self.snes.setObjective(lambda snes_, x: me()._guarded(me()._objective, snes_, x))
+        # The objective holds no reference to the solver (its callbacks go through me).
+
+        def energy(snes_: PETSc.SNES, x: PETSc.Vec) -> float:
+            return me()._guarded(objective, snes_, x)
+
+        self.snes.setObjective(energy)  # type: ignore[arg-type]  # petsc4py stubs: the objective returns a float
         return objective
 
     def _install_step_filters(
@@ -428,7 +449,7 @@ class NewtonSolver:
         self.step_filters.insert(len(filters) - last_is_bisection, step_filter)
 
     # -- callbacks -------------------------------------------------------
-    def _guarded(self, callback, *args):
+    def _guarded(self, callback: Callable[..., _T], *args: Any) -> _T:
         """Run a SNES callback; keep a Python exception so :meth:`solve` can re-raise it."""
         try:
             return callback(*args)
@@ -473,7 +494,7 @@ class NewtonSolver:
             self._refusal = str(refusal)
         self._set_state(x, hooks=False)
 
-    def _converged(self, snes: PETSc.SNES, it: int, norms) -> int:
+    def _converged(self, snes: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
         """SNES convergence test: a refused step ends the solve, else the round-off stop's test."""
         if self._refusal:
             return _DOMAIN
@@ -557,7 +578,7 @@ class NewtonSolver:
         self.problem.u.x.scatter_forward()
         # A solve refused at its start ran no SNES: SNES still holds the previous solve's counts.
         iterations = int(self.snes.getIterationNumber()) if solved else 0
-        ksp_reason = int(self.snes.getKSP().getConvergedReason()) if solved else 0
+        ksp_reason = int(self.snes.getKSP().getConvergedReason()) if solved else 0  # type: ignore[call-overload]  # an int
         reason, message = self._failure(reason, message, ksp_reason)
         self._roundoff.warn_below_floor(self.comm, self._norms, stacklevel=2)
         if reason == int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF) and iterations == 0:
@@ -605,7 +626,7 @@ class NewtonSolver:
         """The SNES solve; its converged reason. PETSc errors become a Python error that says what failed."""
         try:
             self._nlp.solve()
-            return int(self.snes.getConvergedReason())
+            return int(self.snes.getConvergedReason())  # type: ignore[call-overload]  # petsc4py stubs: an int
         except PETSc.Error as exc:
             if self._callback_error is not None:
                 raise self._callback_error from None

@@ -72,7 +72,7 @@ class EnergyObjective:
             return value
         ref, ref_scale = self._ref
         X = snes.getSolution()
-        R = snes.getFunction()[0]
+        R = snes.getFunction()[0]  # type: ignore[index]  # petsc4py stubs: getFunction returns (Vec, callback)
         self._work.waxpy(-1.0, X, x)
         predicted = abs(R.dot(self._work))  # first-order energy change of the trial step
         if self._full_step_change is None:  # the line search tries the full step first
@@ -97,7 +97,7 @@ class EnergyObjective:
         by a residual dip made a hard step crawl for 50 iterations instead of
         failing fast and being cut back).
         """
-        R = snes.getFunction()[0]
+        R = snes.getFunction()[0]  # type: ignore[index]  # petsc4py stubs: getFunction returns (Vec, callback)
         snes.computeFunction(x, self._residual_work)
         self._set_state(x)
         if self._residual_work.norm() < R.norm():

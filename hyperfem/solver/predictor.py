@@ -80,7 +80,7 @@ class BoundaryPredictor:
         x = self._state
         self.problem.u.x.petsc_vec.copy(x)
         # copy() moves the owned entries only; the lifting below reads x's ghosts too.
-        _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
+        _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)  # type: ignore[arg-type]  # petsc4py: int enums
         refresh()
         du = x.duplicate()
         try:
@@ -98,18 +98,18 @@ class BoundaryPredictor:
         bcs = self.problem.bcs
         A = nlp.A
         A.zeroEntries()
-        fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)
+        fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)  # type: ignore[arg-type, misc]  # dolfinx: singledispatch (Mat, Form)
         A.assemble()
         P = None if preconditioner is None else preconditioner(A)
         b = self._rhs
         with b.localForm() as loc:
             loc.set(0.0)
-        fpetsc.apply_lifting(b, [nlp.J], bcs=[bcs], x0=[x], alpha=1.0)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fpetsc.apply_lifting(b, [nlp.J], bcs=[bcs], x0=[x], alpha=1.0)  # type: ignore[arg-type]  # dolfinx: J is one Form
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # petsc4py: int enums
         fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
         ksp.setOperators(A, A if P is None else P)
         ksp.solve(b, du)
-        return ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))
+        return ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))  # type: ignore[operator]  # petsc4py: an int
 
     def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool]) -> bool:
         """Move the unknown to ``x + 2^-k du`` for the smallest admissible ``k``; back to ``x`` if none."""

@@ -70,12 +70,14 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass
+from typing import Any
 
 import basix.ufl
 import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
+from petsc4py import PETSc
 from ufl.algorithms import extract_coefficients
 from ufl.algorithms.analysis import extract_constants
 
@@ -161,12 +163,12 @@ def project_psd(
     return sym, smallest, clamped
 
 
-def _check_mode(mode, where: str) -> None:
+def _check_mode(mode: object, where: str) -> None:
     if mode not in MODES:
         raise ParameterError(f"{where}: mode must be one of {MODES}, got {mode!r}")
 
 
-def _check_floor(floor, where: str) -> None:
+def _check_floor(floor: object, where: str) -> None:
     if not (isinstance(floor, numbers.Real) and not isinstance(floor, bool) and 0.0 <= float(floor) < 1.0):
         raise ParameterError(f"{where}: floor must be a number in [0, 1), got {floor!r}")
 
@@ -219,7 +221,7 @@ def _material_integrals(problem: SolidProblem, where: str) -> list:
     """
     correction = problem.tangent_correction if isinstance(problem, CorrectedTangentProblem) else None
     forms = [problem.energy_internal, correction]
-    grouped: dict[tuple, object] = {}
+    grouped: dict[tuple[object, ...], ufl.Integral] = {}
     for form in forms:
         for itg in () if form is None else form.integrals():
             if itg.integral_type() != "cell":
@@ -308,7 +310,7 @@ class ProjectedTangent:
         tdim = mesh.topology.dim
         n_owned = mesh.topology.index_map(tdim).size_local
         cell = mesh.basix_cell()
-        i, j, k, l = ufl.indices(4)
+        i, j, p, q = ufl.indices(4)
         self._terms: list[_MaterialTerm] = []
         integrals = []
         for itg in _material_integrals(problem, where):
@@ -335,7 +337,7 @@ class ProjectedTangent:
             dofs = Q.dofmap.list[cells]
             inputs = list(extract_coefficients(A)) + list(extract_constants(A))
             self._terms.append(_MaterialTerm(expression, field, cells, dofs, inputs))
-            integrand = ufl.grad(test)[i, j] * field[i, j, k, l] * ufl.grad(trial)[k, l]
+            integrand = ufl.grad(test)[i, j] * field[i, j, p, q] * ufl.grad(trial)[p, q]
             integrals.append(itg.reconstruct(integrand=integrand))
         form = ufl.Form(integrals)
         follower = problem.follower_residual
@@ -350,7 +352,7 @@ class ProjectedTangent:
         self.refreshes = 0
 
     @staticmethod
-    def _cells(itg, n_owned: int, where: str) -> np.ndarray:
+    def _cells(itg: ufl.Integral, n_owned: int, where: str) -> np.ndarray:
         """Owned cells of a cell integral (``everywhere`` or tagged subdomains)."""
         region = itg.subdomain_id()
         if region == "everywhere":
@@ -373,7 +375,9 @@ class ProjectedTangent:
 
     def _unchanged(self, state: list[np.ndarray]) -> bool:
         old = self._snapshot
-        return old is not None and len(old) == len(state) and all(np.array_equal(a, b) for a, b in zip(old, state))
+        if old is None or len(old) != len(state):
+            return False
+        return all(np.array_equal(a, b) for a, b in zip(old, state, strict=True))
 
     def refresh(self, force: bool = False) -> None:
         r"""Re-evaluate :math:`\mathbb{A}^+` at the current state (skipped when nothing changed).
@@ -428,13 +432,13 @@ class ProjectedTangent:
 
 def projected_newton_solver(
     problem: SolidProblem,
-    petsc_options: dict | None = None,
+    petsc_options: dict[str, Any] | None = None,
     *,
     tangent: ProjectedTangent | None = None,
     floor: float = 0.0,
     mode: str = "clamp",
     consistent_below: float | None = None,
-    **kwargs,
+    **kwargs: Any,
 ) -> NewtonSolver:
     r"""A :class:`~hyperfem.solver.NewtonSolver` whose tangent is the projected :math:`K^+`.
 
@@ -504,7 +508,7 @@ class _HybridSwitch:
         self.ratio = ratio
         self.initial = np.inf
 
-    def __call__(self, snes, it: int) -> None:
+    def __call__(self, snes: PETSc.SNES, it: int) -> None:
         norm = float(snes.getFunctionNorm())  # of the current iterate, identical on every rank
         if it == 0:
             self.initial = norm

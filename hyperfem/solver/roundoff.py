@@ -112,7 +112,7 @@ class RoundoffStop:
         self.snes = snes
         self.factor = float(factor)
         self._reference_scale = reference_scale(problem, template_x)
-        self._reference_scale_norm = float(self._reference_scale.norm())
+        self._reference_scale_norm = float(self._reference_scale.norm())  # type: ignore[arg-type]  # petsc4py: 2-norm
         self._work = template_x.duplicate()
         self._residual_work = template_b.duplicate()
         self._abs_jacobian: PETSc.Mat | None = None
@@ -149,10 +149,10 @@ class RoundoffStop:
         if self._abs_jacobian is None:
             self._abs_jacobian = A.duplicate(copy=True)
         else:
-            A.copy(self._abs_jacobian, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            A.copy(self._abs_jacobian, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]  # petsc4py: int enums
         B = self._abs_jacobian
         ai, aj, av = B.getValuesCSR()
-        B.setValuesCSR(ai, aj, np.abs(av))
+        B.setValuesCSR(ai, aj, np.abs(av))  # type: ignore[arg-type]  # petsc4py takes arrays
         B.assemble()
         x = self._work
         self.snes.getSolution().copy(x)
@@ -160,15 +160,16 @@ class RoundoffStop:
         x.axpy(1.0, self._reference_scale)
         y = self._residual_work
         B.mult(x, y)
-        return float(np.finfo(float).eps * y.norm())
+        return float(np.finfo(float).eps * y.norm())  # type: ignore[operator]  # petsc4py: the 2-norm is a float
 
     def bound(self) -> float:
         r"""Cheap upper bound :math:`\varepsilon\|K\|_F(\|x\|_2 + \|h\|_2)` of :meth:`floor` (no copy)."""
         A = self.snes.getJacobian()[0]
-        size = self.snes.getSolution().norm() + self._reference_scale_norm
-        return float(np.finfo(float).eps * A.norm(PETSc.NormType.FROBENIUS) * size)
+        size = self.snes.getSolution().norm() + self._reference_scale_norm  # type: ignore[operator]  # petsc4py: float
+        frobenius = A.norm(PETSc.NormType.FROBENIUS)  # type: ignore[arg-type]  # petsc4py: int enums
+        return float(np.finfo(float).eps * frobenius * size)  # type: ignore[operator]  # petsc4py: a float
 
-    def __call__(self, snes: PETSc.SNES, it: int, norms) -> int:
+    def __call__(self, snes: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
         """SNES convergence test: PETSc's default criteria, then the round-off floor."""
         xnorm, snorm, fnorm = (float(v) for v in norms)
         rtol, atol, stol, _ = snes.getTolerances()

@@ -19,5 +19,5 @@ def assign_state(x: PETSc.Vec, u: fem.Function) -> None:
         x: A ghosted vector of ``u``'s layout (a SNES iterate or trial state).
         u: The unknown to move.
     """
-    _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
-    fpetsc.assign(x, u)
+    _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)  # type: ignore[arg-type]  # petsc4py: enums typed int
+    fpetsc.assign(x, u)  # type: ignore[arg-type]  # dolfinx: singledispatch, the (Vec, Function) variant

@@ -45,13 +45,13 @@ import math
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, ParameterError
-from hyperfem.problem.protocol import TimeStepProblem
+from hyperfem.problem.protocol import SolidProblem, TimeStepProblem
 from hyperfem.validation import check_count, check_finite_scalar, check_positive, is_finite_number
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 
@@ -345,8 +345,11 @@ class StepRecord:
 
 
 # -- stages -------------------------------------------------------------------------------
+_SnapshotT = TypeVar("_SnapshotT")
+
+
 @runtime_checkable
-class Stage(Protocol):
+class Stage(Protocol[_SnapshotT]):
     """What :func:`run_steps` steps: the stage owns its state (unknowns, rates, time).
 
     :func:`run_steps` calls :meth:`save` at the start of each step,
@@ -364,10 +367,10 @@ class Stage(Protocol):
     def time(self) -> float:
         """Time of the accepted state."""
 
-    def save(self) -> object:
+    def save(self) -> _SnapshotT:
         """Snapshot of the accepted state."""
 
-    def restore(self, state: object) -> None:
+    def restore(self, state: _SnapshotT) -> None:
         """Return to a snapshot (loads and boundary values included)."""
 
     def advance(self, t: float, dt: float) -> SolveRecord:
@@ -376,11 +379,11 @@ class Stage(Protocol):
     def commit(self) -> None:
         """Accept the state of the last :meth:`advance`."""
 
-    def distance(self, state: object) -> float:
+    def distance(self, state: _SnapshotT) -> float:
         """Largest nodal displacement difference between the current state and a snapshot."""
 
 
-def _displacement_dofs(problem) -> np.ndarray | None:
+def _displacement_dofs(problem: SolidProblem) -> np.ndarray | None:
     """Owned displacement entries of ``problem.u``'s array; ``None`` when all of ``u`` is displacement."""
     space = problem.displacement_space()
     if not space.component():
@@ -390,7 +393,7 @@ def _displacement_dofs(problem) -> np.ndarray | None:
     return np.asarray(dofs, dtype=np.int32).reshape(-1)[:n]
 
 
-def _max_nodal_distance(problem, dofs: np.ndarray | None, a: np.ndarray, b: np.ndarray) -> float:
+def _max_nodal_distance(problem: SolidProblem, dofs: np.ndarray | None, a: np.ndarray, b: np.ndarray) -> float:
     if dofs is None:
         imap = problem.u.function_space.dofmap.index_map
         bs = problem.u.function_space.dofmap.index_map_bs
@@ -419,7 +422,7 @@ class QuasiStaticStage:
 
     kind = "quasi-static"
 
-    def __init__(self, problem, solver: NewtonSolver):
+    def __init__(self, problem: SolidProblem, solver: NewtonSolver) -> None:
         self.problem = problem
         self.solver = solver
         self._time = float(problem.time)
@@ -474,7 +477,7 @@ class DynamicStage:
         self.problem = problem
         self.solver = solver
         self._time = float(problem.save().t)  # the accepted time t_n
-        self._pending = None
+        self._pending: tuple[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._dofs = _displacement_dofs(problem)
 
     @property
@@ -505,6 +508,7 @@ class DynamicStage:
 
     def commit(self) -> None:
         """Update velocity and acceleration; the step's end becomes the accepted time."""
+        assert self._pending is not None  # commit follows advance
         dt, inputs = self._pending
         self.problem.commit(dt, *inputs)
         self._time += dt
@@ -534,7 +538,7 @@ def _why(record: SolveRecord) -> str:
     return f"SNES {record.reason_name}{detail}, min J {record.min_J:.3g}"
 
 
-def _attempt(stage: Stage, policy: StepPolicy, t: float, sign: float, h: float, state) -> _Attempt:
+def _attempt(stage: Stage[Any], policy: StepPolicy, t: float, sign: float, h: float, state: object) -> _Attempt:
     """One attempt of a step of length ``h`` (and its error estimate); committed if it passes."""
     record = stage.advance(t, sign * h)
     records = [record]
@@ -619,7 +623,7 @@ def _grow(policy: StepPolicy, control: _Control, accepted: list[SolveRecord]) ->
 
 
 def _step(
-    stage: Stage, policy: StepPolicy, course: _Course, control: _Control, t: float, history: list[StepRecord]
+    stage: Stage[Any], policy: StepPolicy, course: _Course, control: _Control, t: float, history: list[StepRecord]
 ) -> StepRecord:
     """One accepted step from ``t``: attempts cut back until one passes, then the increment control."""
     start = _time.perf_counter()
@@ -668,7 +672,7 @@ def _step(
 
 
 def run_steps(
-    stage: Stage,
+    stage: Stage[Any],
     policy: StepPolicy,
     on_step: Callable[[StepRecord], None] | None = None,
     *,
@@ -738,7 +742,7 @@ def solve_quasistatic(
 
 
 def integrate(
-    problem,
+    problem: TimeStepProblem,
     solver: NewtonSolver,
     stepping: TimeStepping,
     on_step: Callable[[StepRecord], None] | None = None,
