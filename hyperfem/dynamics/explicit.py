@@ -247,7 +247,7 @@ class ExplicitDynamics:
         """Time of the current state."""
         return self.t_n
 
-    def displacement(self, state: fem.Function | None = None):
+    def displacement(self, state: fem.Function | None = None) -> ufl.core.expr.Expr:
         """The base problem's displacement of ``state``."""
         return self.base.displacement(state)
 
@@ -255,7 +255,7 @@ class ExplicitDynamics:
         """The displacement space."""
         return self.base.displacement_space()
 
-    def volume_jacobian(self):
+    def volume_jacobian(self) -> ufl.core.expr.Expr:
         """The base problem's inversion measure."""
         return self.base.volume_jacobian()
 
@@ -290,8 +290,8 @@ class ExplicitDynamics:
         b = self._b
         with b.localForm() as loc:
             loc.set(0.0)
-        fpetsc.assemble_vector(b, self._residual)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fpetsc.assemble_vector(b, self._residual)  # type: ignore[arg-type]  # dolfinx: singledispatch (Vec, Form)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # int enums
         g = self._g.x
         if self.lumped:
             g.array[: self._owned] = -b.array_r * self._inverse_mass
@@ -299,13 +299,14 @@ class ExplicitDynamics:
         else:
             b.scale(-1.0)
             fpetsc.set_bc(b, self.base.bcs, alpha=0.0)
+            assert self._ksp is not None  # a consistent mass has its solver
             self._ksp.solve(b, self._x)
             reason = self._ksp.getConvergedReason()
             its = int(self._ksp.getIterationNumber())
             if reason == PETSc.KSP.ConvergedReason.DIVERGED_NANORINF:
                 g.array[:] = np.nan  # a non-finite force: the step reports a non-finite state
                 return its
-            if reason <= 0:
+            if reason <= 0:  # type: ignore[operator]  # petsc4py stubs: the reason is an int
                 raise SolverError(f"ExplicitDynamics: the mass solve failed at t = {self.t_n:g} (KSP reason {reason})")
             g.array[: self._owned] = self._x.array_r
         g.scatter_forward()
@@ -378,7 +379,7 @@ class ExplicitDynamics:
         )
 
     # -- energies ---------------------------------------------------------------------
-    def _sum(self, form) -> float:
+    def _sum(self, form: fem.Form) -> float:
         return float(self.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
 
     def kinetic_energy(self) -> float:
@@ -423,6 +424,7 @@ class ExplicitDynamics:
 
         def apply_mass(src: PETSc.Vec, dst: PETSc.Vec) -> None:
             if self.lumped:
+                assert self.mass is not None  # the lumped mass
                 dst.array_w[:] = src.array_r * self.mass.x.array[:owned]
             else:
                 self._M.mult(src, dst)
@@ -432,6 +434,7 @@ class ExplicitDynamics:
                 dst.array_w[:] = src.array_r * self._inverse_mass
             else:
                 src.array_w[~free] = 0.0
+                assert self._ksp is not None  # a consistent mass has its solver
                 self._ksp.solve(src, dst)
             dst.array_w[~free] = 0.0
 

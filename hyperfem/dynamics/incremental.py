@@ -391,8 +391,8 @@ class IncrementalProblem:
         integ = self.integrator
         self._u_n.x.array[:] = self.u.x.array
         A, u_tilde, B, u_hat = integ.coefficients(dt, self.u.x.array, self.v.x.array, self.a.x.array)
-        self._A.value = A
-        self._B.value = B
+        self._A.value = A  # type: ignore[assignment]  # dolfinx: any array-like
+        self._B.value = B  # type: ignore[assignment]  # dolfinx: any array-like
         self._u_tilde.x.array[:] = u_tilde
         self._u_hat.x.array[:] = u_hat
         self.base.set_time(t_new - float(integ.alpha_f) * dt, t_new)
@@ -424,6 +424,7 @@ class IncrementalProblem:
         """
         if not self.integrator.dynamic:
             return
+        assert self.density is not None and self._unified_md is not None  # a dynamic step has a density (__init__)
         base = self.base
         block = self.displacement_block
         base.set_time(self.t_n)
@@ -446,13 +447,13 @@ class IncrementalProblem:
             M = fpetsc.assemble_matrix(fem.form(m), bcs=base.bcs)
             M.assemble()
             b = fpetsc.assemble_vector(fem.form(rhs))
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # int enums
             fpetsc.set_bc(b, base.bcs, alpha=0.0)
         else:
             M = fpetsc.assemble_matrix(fem.form(m))
             M.assemble()
             b = fpetsc.assemble_vector(fem.form(rhs))
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # int enums
             local, rows = self._constrained_rows()
             M.zeroRowsColumns(rows, diag=1.0)
             b.array_w[local] = 0.0
@@ -479,13 +480,14 @@ class IncrementalProblem:
         for bc in self.base.bcs:
             constrained[bc.dof_indices()[0]] = True
         imap, bs = block.space.dofmap.index_map, block.space.dofmap.index_map_bs
+        assert block.dofs is not None  # called when the displacement is a block of the state
         owned = imap.size_local * bs
         local = np.flatnonzero(constrained[block.dofs[:owned]]).astype(np.int32)
         blocks = imap.local_to_global(local // bs)
         return local, (blocks * bs + local % bs).astype(PETSc.IntType)
 
     # -- energies ----------------------------------------------------------------
-    def _sum(self, form) -> float:
+    def _sum(self, form: fem.Form) -> float:
         return float(self.domain.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
 
     def kinetic_energy(self) -> float:

@@ -63,11 +63,15 @@ class TimeIntegrator:
     alpha_m = 0.0
     alpha_f = 0.0
 
-    def coefficients(self, dt: float, u_n, v_n, a_n) -> tuple[float, np.ndarray, float, np.ndarray]:
+    def coefficients(
+        self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[float, np.ndarray, float, np.ndarray]:
         r"""Return :math:`(A, \tilde u, B, \hat u)` for a step of size ``dt``."""
         raise NotImplementedError
 
-    def update(self, dt: float, u, u_n, v_n, a_n) -> tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, dt: float, u: np.ndarray, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Velocity and acceleration at :math:`t_{n+1}` from the converged ``u``."""
         raise NotImplementedError
 
@@ -83,10 +87,14 @@ class QuasiStatic(TimeIntegrator):
     dynamic = False
     order = 0
 
-    def coefficients(self, dt, u_n, v_n, a_n):
+    def coefficients(
+        self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[float, np.ndarray, float, np.ndarray]:
         return 0.0, u_n, 0.0, u_n
 
-    def update(self, dt, u, u_n, v_n, a_n):
+    def update(
+        self, dt: float, u: np.ndarray, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         return (u - u_n) / dt, np.zeros_like(u)
 
 
@@ -96,10 +104,14 @@ class BackwardEuler(TimeIntegrator):
     name = "backward-euler"
     order = 1
 
-    def coefficients(self, dt, u_n, v_n, a_n):
+    def coefficients(
+        self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[float, np.ndarray, float, np.ndarray]:
         return 1.0 / dt**2, u_n + dt * v_n, 1.0 / dt, u_n
 
-    def update(self, dt, u, u_n, v_n, a_n):
+    def update(
+        self, dt: float, u: np.ndarray, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         v = (u - u_n) / dt
         return v, (v - v_n) / dt
 
@@ -112,12 +124,16 @@ class _AlphaFamily(TimeIntegrator):
         for name in ("beta", "gamma"):
             check_positive(name, getattr(self, name), type(self).__name__)
 
-    def _predict(self, dt, u_n, v_n, a_n):
+    def _predict(
+        self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         u_pred = u_n + dt * v_n + dt**2 * (0.5 - self.beta) * a_n
         v_pred = v_n + dt * (1.0 - self.gamma) * a_n
         return u_pred, v_pred
 
-    def coefficients(self, dt, u_n, v_n, a_n):
+    def coefficients(
+        self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[float, np.ndarray, float, np.ndarray]:
         am, af = self.alpha_m, self.alpha_f
         u_pred, v_pred = self._predict(dt, u_n, v_n, a_n)
         A = (1.0 - am) / (self.beta * dt**2)
@@ -126,7 +142,9 @@ class _AlphaFamily(TimeIntegrator):
         u_hat = u_pred - ((1.0 - af) * v_pred + af * v_n) / B
         return A, u_tilde, B, u_hat
 
-    def update(self, dt, u, u_n, v_n, a_n):
+    def update(
+        self, dt: float, u: np.ndarray, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         u_pred, v_pred = self._predict(dt, u_n, v_n, a_n)
         a = (u - u_pred) / (self.beta * dt**2)
         return v_pred + self.gamma * dt * a, a

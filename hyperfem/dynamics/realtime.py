@@ -311,7 +311,8 @@ class _StepMatrices:
             mat = PETSc.Mat().create(comm)
             mat.setSizes(sizes)
             mat.setType(PETSc.Mat.Type.AIJ)
-            mat.setPreallocationCOO(rows.copy(), cols.copy())  # PETSc may overwrite the index arrays
+            # PETSc may overwrite the index arrays; petsc4py takes arrays where its stubs say Sequence
+            mat.setPreallocationCOO(rows.copy(), cols.copy())  # type: ignore[arg-type]
             return mat
 
         self.A = coo_matrix()
@@ -319,13 +320,13 @@ class _StepMatrices:
         self.constant: dict[str, PETSc.Mat] = {}
         for name, form in constants.items():
             csr.data[:] = 0.0
-            fem.assemble_matrix(csr, form)
+            fem.assemble_matrix(csr, form)  # type: ignore[arg-type]  # dolfinx: singledispatch (MatrixCSR, Form)
             csr.scatter_reverse()
             data = csr.data.copy()
             data[self.nnz :] = 0.0  # ghost rows were added to their owners
             self.constant_data[name] = data
             self.constant[name] = coo_matrix()
-            self.constant[name].setValuesCOO(data[: self.nnz], PETSc.InsertMode.INSERT_VALUES)
+            self.constant[name].setValuesCOO(data[: self.nnz], PETSc.InsertMode.INSERT_VALUES)  # type: ignore[arg-type]
         # Entries in Dirichlet rows or columns (the CSR column map has its own
         # ghosts: dofs are matched by global index), and the diagonal of the owned Dirichlet rows.
         bc_local = np.unique(np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)]))
@@ -350,10 +351,10 @@ class _StepMatrices:
         """:math:`A = Q + K(u)` at the current state of the tangent's coefficients."""
         csr = self.csr
         np.copyto(csr.data, self._Q)
-        fem.assemble_matrix(csr, self.tangent, bcs=self.bcs)
+        fem.assemble_matrix(csr, self.tangent, bcs=self.bcs)  # type: ignore[arg-type, misc]  # dolfinx: singledispatch
         csr.scatter_reverse()
         csr.data[self._bc_diagonal] = 1.0
-        self.A.setValuesCOO(csr.data[: self.nnz], PETSc.InsertMode.INSERT_VALUES)
+        self.A.setValuesCOO(csr.data[: self.nnz], PETSc.InsertMode.INSERT_VALUES)  # type: ignore[arg-type]  # petsc4py
 
 
 @dataclass
@@ -479,13 +480,14 @@ class RealtimeStepper:
         base, u = problem.base, problem.u
         v, du = ufl.TestFunction(problem.V), ufl.TrialFunction(problem.V)
         disp = base.displacement
+        assert problem.density is not None  # a dynamic scheme (checked by the constructor)
         kinetic = 0.5 * problem.density.integral(ufl.dot(disp(u), disp(u)), problem.domain, problem.degree)
         mass = ufl.derivative(ufl.derivative(kinetic, u, v), u, du)
         damping = problem.damping
         self._alpha = 0.0 if damping is None else float(damping.alpha)
         self._beta = 0.0 if damping is None else float(damping.beta)
 
-        def compile_(form) -> fem.Form:
+        def compile_(form: ufl.Form) -> fem.Form:
             return fem.form(form, form_compiler_options=form_compiler_options, jit_options=jit_options)
 
         self.forms: dict[str, fem.Form] = {
@@ -553,8 +555,8 @@ class RealtimeStepper:
         b = self._b
         with b.localForm() as local:
             local.set(0.0)
-        fpetsc.assemble_vector(b, self.forms["residual"])
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fpetsc.assemble_vector(b, self.forms["residual"])  # type: ignore[arg-type]  # dolfinx: singledispatch
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # int enums
         u = self.problem.u.x.petsc_vec
         z = self._z
         # Q u - g = M (cM u - w) + cK K0 (u - u_hat)
@@ -566,7 +568,7 @@ class RealtimeStepper:
             z.scale(self._cK)
             self._K0.multAdd(z, b, b)
         b.array_w[self._matrices.bc_rows] = 0.0
-        return float(b.norm())
+        return float(b.norm())  # type: ignore[arg-type]  # petsc4py: the 2-norm is a float
 
     # -- stepping --------------------------------------------------------------------
     def _prepare(self, dt: float) -> None:
@@ -697,10 +699,11 @@ class RealtimeStepper:
             self.ksp.solve(self._b, self._du)
             tally.solve += time.perf_counter() - t0
             tally.linear += max(int(self.ksp.getIterationNumber()), 1)
-            tally.failures += int(self.ksp.getConvergedReason() < 0)
+            tally.failures += int(self.ksp.getConvergedReason() < 0)  # type: ignore[operator]  # petsc4py: an int
             u.x.petsc_vec.axpy(-1.0, self._du)
             u.x.scatter_forward()
             tally.iterations += 1
+            assert self._tangent_age is not None  # _refresh_tangent assembled one
             self._tangent_age += 1
             t0 = time.perf_counter()
             r_new = self._assemble_residual()

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
+from typing import Any, cast
 
 import numpy as np
 from mpi4py import MPI  # noqa: F401  (before petsc4py)
@@ -79,7 +80,9 @@ SEMI_IMPLICIT_OPTIONS: dict[str, object] = {
 _MAX_IT = int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)
 
 
-def semi_implicit_solver(problem: IncrementalProblem, petsc_options: dict | None = None, **kwargs) -> NewtonSolver:
+def semi_implicit_solver(
+    problem: IncrementalProblem, petsc_options: dict[str, Any] | None = None, **kwargs: Any
+) -> NewtonSolver:
     """A :class:`~hyperfem.solver.NewtonSolver` that takes exactly one Newton iteration.
 
     Args:
@@ -149,7 +152,8 @@ class SemiImplicitStage(DynamicStage):
     """
 
     def __init__(self, problem: IncrementalProblem, solver: NewtonSolver):
-        if int(solver.options.get("snes_max_it", 0)) != 1:
+        max_it = cast("str | float", solver.options.get("snes_max_it", 0))  # an option value: a number or its text
+        if int(max_it) != 1:
             raise ParameterError(
                 "SemiImplicitStage: the solver must take exactly one Newton iteration (use semi_implicit_solver)"
             )

@@ -42,11 +42,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from dolfinx import mesh as dmesh
+
 from hyperfem.errors import ParameterError
 from hyperfem.materials.parameters import LameParameters
 from hyperfem.validation import check_positive
+
+if TYPE_CHECKING:
+    from hyperfem.mesh.domain import Domain
 
 __all__ = [
     "CONSISTENT_MASS_FACTOR",
@@ -89,7 +95,7 @@ def _measure(edges: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(np.linalg.det(gram), 0.0, None)) / math.factorial(k)
 
 
-def inscribed_diameters(mesh) -> np.ndarray:
+def inscribed_diameters(mesh: dmesh.Mesh) -> np.ndarray:
     r"""Inscribed-sphere diameter :math:`2\,d\,|K|/|\partial K|` of every owned cell (affine simplices).
 
     Only the vertices of each cell are used (a curved higher-order geometry
@@ -164,7 +170,12 @@ class StableStep:
 
 
 def stable_time_step(
-    domain, params: LameParameters, rho: float, safety: float = DEFAULT_SAFETY, *, lumped: bool = True
+    domain: Domain | dmesh.Mesh,
+    params: LameParameters,
+    rho: float,
+    safety: float = DEFAULT_SAFETY,
+    *,
+    lumped: bool = True,
 ) -> StableStep:
     r"""Estimate :math:`\Delta t_\text{crit} = \min_K h_K / c` for ``domain`` (see the module docstring).
 
@@ -184,7 +195,7 @@ def stable_time_step(
     if not (isinstance(safety, (int, float)) and 0.0 < safety <= 1.0):
         raise ParameterError(f"stable_time_step: safety must lie in (0, 1], got {safety!r}")
     c = wave_speed(params, rho)
-    mesh = getattr(domain, "mesh", domain)
+    mesh = domain if isinstance(domain, dmesh.Mesh) else domain.mesh
     h = inscribed_diameters(mesh)
     comm = mesh.comm
     if h.size:
