@@ -66,12 +66,14 @@ import json
 import os
 import shutil
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import basix
 import numpy as np
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from hyperfem.errors import CheckpointError, OutputError
@@ -112,7 +114,7 @@ class History:
         comm: The run's communicator.
     """
 
-    def __init__(self, comm):
+    def __init__(self, comm: MPI.Comm) -> None:
         token = uuid.uuid4().hex[:12] if comm.rank == 0 else None
         self.name = f"history-{comm.bcast(token, root=0)}.jsonl"
         self._written: dict[str, list[str]] = {}  # key -> the items in the file, as the JSON lines written
@@ -139,7 +141,7 @@ class History:
         self._written[key] = lines
         return {HISTORY_REF: self.name, "key": key, "count": len(items)}
 
-    def flush(self, folder: Path, comm) -> None:
+    def flush(self, folder: Path, comm: MPI.Comm) -> None:
         """Append the queued items to the file (rank 0; collective).
 
         Raises:
@@ -178,8 +180,11 @@ KEY_WIDTH = 6
 """Columns of a dof key: entity dimension, four vertex (or cell) indices, index on the entity."""
 
 
-def _leaves(element):
-    """The basix elements of a (mixed, blocked) basix.ufl element; ``None`` for a leaf without one."""
+def _leaves(element: Any) -> Iterator[basix.finite_element.FiniteElement | None]:
+    """The basix elements of a (mixed, blocked) basix.ufl element; ``None`` for a leaf without one.
+
+    Duck-typed: the element classes of basix.ufl (some private) are told apart by what they have.
+    """
     subs = getattr(element, "sub_elements", None)
     if subs and type(element).__name__ != "_BasixElement":
         for sub in subs:
@@ -241,12 +246,12 @@ def dof_keys(V: fem.FunctionSpace) -> np.ndarray | None:
     return keys[: imap.size_local]
 
 
-def _original_cells(mesh) -> np.ndarray:
+def _original_cells(mesh: dmesh.Mesh) -> np.ndarray:
     n = mesh.topology.index_map(mesh.topology.dim).size_local
     return np.asarray(mesh.topology.original_cell_index[:n], dtype=np.int64)
 
 
-def _collective(comm, error: str) -> str:
+def _collective(comm: MPI.Comm, error: str) -> str:
     """The first non-empty error of any rank (every rank gets the same)."""
     return next((e for e in comm.allgather(error) if e), "")
 
@@ -255,8 +260,8 @@ def write_checkpoint(
     folder: str | Path,
     step: int,
     functions: Mapping[str, fem.Function],
-    meta: dict,
-    comm,
+    meta: dict[str, Any],
+    comm: MPI.Comm,
     *,
     keep: int | None = 2,
     history: History | None = None,
@@ -327,7 +332,7 @@ def _write_arrays(functions: Mapping[str, fem.Function], target: Path, final: Pa
         if mesh is not None:
             arrays["original_cells"] = _original_cells(mesh)
         with open(target, "wb") as fh:
-            np.savez(fh, **arrays)
+            np.savez(fh, **arrays)  # type: ignore[arg-type]  # numpy stubs: the keywords are array names
     except OSError as exc:
         return f"cannot write checkpoint {final} (rank {rank}): {exc.strerror or exc}"
     return ""
@@ -366,7 +371,7 @@ def _remove_unused_histories(folder: Path, history: History | None) -> None:
             path.unlink(missing_ok=True)
 
 
-def resolve_checkpoint(path: str | Path, comm, *, action: str = "restart from") -> Path:
+def resolve_checkpoint(path: str | Path, comm: MPI.Comm, *, action: str = "restart from") -> Path:
     """The step folder ``path`` names: a checkpoint folder (its latest), its latest.json, a step folder, meta.json.
 
     ``action`` starts the message of a failure (``"cannot <action> <path>: ..."``).
@@ -411,7 +416,7 @@ def resolve_checkpoint(path: str | Path, comm, *, action: str = "restart from") 
     return Path(found)
 
 
-def read_meta(path: str | Path, comm) -> dict:
+def read_meta(path: str | Path, comm: MPI.Comm) -> dict[str, Any]:
     """The ``meta.json`` of the checkpoint at ``path`` (:func:`resolve_checkpoint`), read on rank 0 and broadcast.
 
     Raises:
@@ -449,7 +454,7 @@ def _history_items(path: Path) -> dict[str, list]:
     return out
 
 
-def _resolve_history(value, folder: Path, files: dict):
+def _resolve_history(value: Any, folder: Path, files: dict[str, dict[str, list[Any]]]) -> Any:
     """``value`` with every :data:`HISTORY_REF` reference replaced by its items (``files``: those read)."""
     if isinstance(value, list):
         return [_resolve_history(v, folder, files) for v in value]
@@ -469,7 +474,7 @@ def _resolve_history(value, folder: Path, files: dict):
     return items[:count]
 
 
-def _rank_files(folder: Path, comm) -> tuple[list[Path], str]:
+def _rank_files(folder: Path, comm: MPI.Comm) -> tuple[list[Path], str]:
     """The complete set of rank files in ``folder`` (rank 0 looks, every rank gets the list), or an error."""
     files, error = [], ""
     if comm.rank == 0:
@@ -493,10 +498,12 @@ def _load(path: Path, names: list[str] | None = None) -> dict[str, np.ndarray]:
         return {k: data[k] for k in (data.files if names is None else names) if k in data.files}
 
 
-def _by_global_index(folder: Path, functions: Mapping[str, fem.Function], stored: dict, comm) -> tuple[list, str]:
+def _by_global_index(
+    folder: Path, functions: Mapping[str, fem.Function], stored: dict[str, np.ndarray], comm: MPI.Comm
+) -> tuple[list[tuple[fem.Function, np.ndarray]], str]:
     """The values of a file written on this distribution of the mesh, placed by global dof index."""
     name = _rank_file(comm.rank, comm.size)
-    updates = []
+    updates: list[tuple[fem.Function, np.ndarray]] = []
     for key, f in functions.items():
         if key not in stored or f"{key}.global" not in stored:
             return [], f"{folder}: no field {key!r} in {name} (stored: {', '.join(sorted(stored))})"
@@ -517,7 +524,9 @@ def _by_global_index(folder: Path, functions: Mapping[str, fem.Function], stored
     return updates, ""
 
 
-def _by_key(folder: Path, files: list[Path], functions: Mapping[str, fem.Function], comm) -> tuple[list, str]:
+def _by_key(
+    folder: Path, files: list[Path], functions: Mapping[str, fem.Function], comm: MPI.Comm
+) -> tuple[list[tuple[fem.Function, np.ndarray]], str]:
     """The values of a file written on another number of ranks, found by dof key (every rank reads every file)."""
     names = [n for key in functions for n in (key, f"{key}.keys")]
     try:
@@ -565,7 +574,7 @@ def _by_key(folder: Path, files: list[Path], functions: Mapping[str, fem.Functio
     return updates, ""
 
 
-def read_functions(path: str | Path, functions: Mapping[str, fem.Function], comm) -> None:
+def read_functions(path: str | Path, functions: Mapping[str, fem.Function], comm: MPI.Comm) -> None:
     """Load the stored values into ``functions`` (collective; ghosts updated).
 
     On the distribution of the mesh that wrote the checkpoint, each rank reads

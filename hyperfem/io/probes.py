@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 from dolfinx import fem, geometry
+from dolfinx import mesh as dmesh
+from numpy.typing import ArrayLike
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
@@ -30,7 +32,7 @@ class PointProbe:
         ParameterError: If a point is not 1 to 3 finite coordinates or lies outside the mesh.
     """
 
-    def __init__(self, mesh, points):
+    def __init__(self, mesh: dmesh.Mesh, points: ArrayLike) -> None:
         try:
             pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
         except (TypeError, ValueError):

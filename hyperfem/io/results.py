@@ -19,6 +19,7 @@ import re
 import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 from mpi4py import MPI
@@ -42,10 +43,11 @@ __all__ = [
 ]
 
 
-_ABANDONED: list = []
+_ABANDONED: list[object] = []
+_T = TypeVar("_T")
 
 
-def abandon(writer) -> None:
+def abandon(writer: object) -> None:
     """Keep a writer that failed (e.g. an ADIOS2 engine on a full disk) alive until the process ends.
 
     Closing or destroying an ADIOS2 engine whose transport failed throws from a
@@ -77,7 +79,7 @@ def _reason(exc: BaseException) -> str:
     return text or type(exc).__name__
 
 
-def on_rank0(comm, action: Callable[[], object], what: str) -> object:
+def on_rank0(comm: MPI.Comm, action: Callable[[], _T], what: str) -> _T | None:
     """Run ``action()`` on rank 0 and raise the same :class:`OutputError` on every rank if it fails.
 
     Args:
@@ -88,7 +90,8 @@ def on_rank0(comm, action: Callable[[], object], what: str) -> object:
     Returns:
         ``action()``'s result on rank 0, ``None`` elsewhere.
     """
-    result, error = None, ""
+    result: _T | None = None
+    error = ""
     if comm.rank == 0:
         try:
             result = action()
@@ -100,7 +103,7 @@ def on_rank0(comm, action: Callable[[], object], what: str) -> object:
     return result
 
 
-def ensure_output_dir(path: str | Path, comm) -> Path:
+def ensure_output_dir(path: str | Path, comm: MPI.Comm) -> Path:
     """Create the output folder ``path`` (rank 0) and check that it is writable, on every rank.
 
     Rank 0 makes the folder (with parents) and writes and removes a probe
@@ -135,7 +138,7 @@ def _is_summary(path: Path) -> bool:
     return isinstance(data, dict) and {"name", "steps", "completed"} <= data.keys()
 
 
-def previous_summaries(path: str | Path, comm) -> list[Path]:
+def previous_summaries(path: str | Path, comm: MPI.Comm) -> list[Path]:
     """The JSON summaries of earlier runs in the folder ``path`` (rank 0 looks; every rank gets the list).
 
     A folder that does not exist, or holds no summary, gives ``[]``.
@@ -151,7 +154,7 @@ def previous_summaries(path: str | Path, comm) -> list[Path]:
     return [Path(p) for p in comm.bcast(found, root=0)]
 
 
-def note_overwrite(paths: Sequence[str | Path], comm) -> list[Path]:
+def note_overwrite(paths: Sequence[str | Path], comm: MPI.Comm) -> list[Path]:
     """Say (rank 0) which of ``paths`` exist and are about to be overwritten; every rank gets that list.
 
     For scripts that write to a fixed default folder (the demos): a second run replaces the
@@ -167,7 +170,7 @@ def note_overwrite(paths: Sequence[str | Path], comm) -> list[Path]:
     return [Path(p) for p in found]
 
 
-def jsonable(obj):
+def jsonable(obj: object) -> Any:
     """``obj`` with NumPy arrays and scalars, tuples and paths turned into JSON types (recursively)."""
     if isinstance(obj, dict):
         return {str(k): jsonable(v) for k, v in obj.items()}
@@ -182,7 +185,7 @@ def jsonable(obj):
     return obj
 
 
-def flatten_row(row: dict) -> dict:
+def flatten_row(row: dict[str, Any]) -> dict[str, Any]:
     """A row of a run's summary as CSV columns: scalars as they are, lists of numbers spread out.
 
     A list (tuple, array) ``name`` becomes the columns ``name_0, name_1, ...``;
@@ -198,7 +201,7 @@ def flatten_row(row: dict) -> dict:
     Returns:
         Column name → scalar.
     """
-    flat = {}
+    flat: dict[str, Any] = {}
     for key, value in row.items():
         if isinstance(value, (list, tuple, np.ndarray)):
             array = np.asarray(value, dtype=float)
@@ -209,7 +212,7 @@ def flatten_row(row: dict) -> dict:
     return flat
 
 
-def write_json(path: str | Path, data: dict, comm) -> Path:
+def write_json(path: str | Path, data: dict[str, Any], comm: MPI.Comm) -> Path:
     """Write ``data`` as JSON from rank 0 (all ranks must call it).
 
     The text goes to a temporary file that then replaces ``path``, so a run
@@ -255,7 +258,9 @@ class VTXWriter:
         degree: Lagrange degree of the written fields.
     """
 
-    def __init__(self, comm, path: str | Path, functions: Sequence[fem.Function], degree: int | None = None):
+    def __init__(
+        self, comm: MPI.Comm, path: str | Path, functions: Sequence[fem.Function], degree: int | None = None
+    ) -> None:
         self.path = Path(path)
         ensure_output_dir(self.path.parent, comm)
         mesh = functions[0].function_space.mesh
@@ -265,7 +270,7 @@ class VTXWriter:
             degree = max(e.embedded_superdegree for e in elements)
         family = "DG" if discontinuous else "Lagrange"
         degree = degree if discontinuous else max(1, degree)
-        self._pairs = []
+        self._pairs: list[tuple[fem.Function, fem.Function]] = []
         out = []
         for f in functions:
             shape = f.function_space.value_shape
@@ -274,7 +279,7 @@ class VTXWriter:
             self._pairs.append((f, g))
             out.append(g)
         self._comm = comm
-        self._writer = io.VTXWriter(comm, str(self.path), out, engine="BP4")
+        self._writer: io.VTXWriter | None = io.VTXWriter(comm, str(self.path), out, engine="BP4")
 
     def write(self, t: float) -> None:
         """Interpolate the functions into the output space and append a frame at time ``t``.
@@ -326,7 +331,7 @@ class VTXWriter:
     def __enter__(self) -> VTXWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -364,7 +369,7 @@ class XDMFWriter:
         functions: Functions on one mesh (their names appear in ParaView).
     """
 
-    def __init__(self, comm, path: str | Path, functions: Sequence[fem.Function]):
+    def __init__(self, comm: MPI.Comm, path: str | Path, functions: Sequence[fem.Function]) -> None:
         self.path = Path(path)
         ensure_output_dir(self.path.parent, comm)
         mesh = functions[0].function_space.mesh
@@ -395,5 +400,5 @@ class XDMFWriter:
     def __enter__(self) -> XDMFWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
