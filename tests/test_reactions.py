@@ -256,3 +256,18 @@ def test_dynamic_reaction_is_the_rate_of_momentum(comm):
     # Newmark balances exactly this residual: the free rows vanish (to the Newton tolerance)
     for worst, scale in checked[1:]:
         assert worst < 1e-6 * scale
+
+
+def test_reactions_of_an_explicit_run(comm):
+    """Reactions of a problem that steps itself (solver=None): the hooks of its energies (start used to fail)."""
+    params = hf.materials.LameParameters.from_youngs(1.0, 0.3)
+    base = hf.HyperelasticProblem(
+        unit_cube(2, comm), lambda F: hf.materials.neo_hookean(F, params), bcs=uniaxial_rollers(1.1)
+    )
+    explicit = dyn.ExplicitDynamics(base, dyn.MassDensity(1.0, lumped=True), lame=params)
+    out = Reactions()
+    dt = explicit.stable_step.dt_max
+    dyn.integrate_explicit(explicit, dyn.TimeStepping(dt=dt, t_end=3 * dt), outputs=[out])
+    assert set(out._last) == {"x0", "x1", "y0", "z0", "total"}
+    assert all(np.all(np.isfinite(r.force)) for r in out._last.values())
+    assert out._last["x1"].force[0] > 0.0  # the support holds the stretched end out

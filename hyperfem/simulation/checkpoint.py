@@ -44,6 +44,7 @@ import dataclasses
 import hashlib
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from dolfinx import fem
@@ -59,8 +60,15 @@ from hyperfem.io.checkpoint import (
     write_checkpoint,
 )
 from hyperfem.io.results import ensure_output_dir, jsonable
+from hyperfem.problem.protocol import SolidProblem
 from hyperfem.simulation.outputs import Output
 from hyperfem.solver.stepping import StepPolicy, StepRecord
+
+if TYPE_CHECKING:
+    from dolfinx import mesh as dmesh
+
+    from hyperfem.dynamics.incremental import DynamicState
+    from hyperfem.simulation.runner import Simulation
 
 __all__ = [
     "Checkpoint",
@@ -126,22 +134,35 @@ class StepperState:
         )
 
 
-def case_hash(case) -> str:
+@runtime_checkable
+class _DynamicRun(Protocol):
+    """The problem of a dynamic run as a checkpoint sees it: the state ``u, v, a`` and ``restore``."""
+
+    u: fem.Function
+    v: fem.Function
+    a: fem.Function
+
+    def restore(self, state: DynamicState) -> None:
+        """Back to the state ``(t, u, v, a)``."""
+
+
+def case_hash(case: object) -> str:
     """SHA-256 of the canonical JSON of a case description (sorted keys; non-JSON values by ``str``)."""
     text = json.dumps(jsonable(case), sort_keys=True, default=str, allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def checkpoint_functions(sim) -> dict[str, fem.Function]:
+def checkpoint_functions(sim: Simulation) -> dict[str, fem.Function]:
     """What a checkpoint of ``sim`` stores: ``u``, and ``v``, ``a`` for a dynamic run."""
     problem = sim.problem
     functions = {"u": problem.u}
     if sim.kind == "dynamic":
+        assert isinstance(problem, _DynamicRun)  # the time step of a dynamic run
         functions.update(v=problem.v, a=problem.a)
     return functions
 
 
-def _geometry_sums(mesh) -> list[float]:
+def _geometry_sums(mesh: dmesh.Mesh) -> list[float]:
     """Partition-independent sums over the owned vertices: coordinates and their squares."""
     n = mesh.geometry.index_map().size_local
     x = mesh.geometry.x[:n]
@@ -149,7 +170,7 @@ def _geometry_sums(mesh) -> list[float]:
     return [float(v) for v in mesh.comm.allreduce(local, op=MPI.SUM)]
 
 
-def fingerprint(sim) -> dict:
+def fingerprint(sim: Simulation) -> dict:
     """What must agree between a run and the checkpoint it restarts from (collective).
 
     Returns:
@@ -198,7 +219,7 @@ def _mismatch(stored: dict, current: dict) -> str:
     return ""
 
 
-def _output_state(history: History, k: int, state):
+def _output_state(history: History, k: int, state: Any) -> Any:
     """An output's state with its list entries referred to ``history`` (those that only grow)."""
     if not isinstance(state, dict):
         return state
@@ -208,7 +229,9 @@ def _output_state(history: History, k: int, state):
     }
 
 
-def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2, history: History | None = None) -> Path:
+def save_checkpoint(
+    sim: Simulation, folder: str | Path, *, keep: int | None = 2, history: History | None = None
+) -> Path:
     """Write a checkpoint of the accepted state of ``sim`` (collective).
 
     Args:
@@ -240,7 +263,7 @@ def save_checkpoint(sim, folder: str | Path, *, keep: int | None = 2, history: H
     return write_checkpoint(folder, sim.step, checkpoint_functions(sim), meta, sim.comm, keep=keep, history=history)
 
 
-def load_checkpoint(sim, path: str | Path) -> dict:
+def load_checkpoint(sim: Simulation, path: str | Path) -> dict:
     """Bring ``sim`` to the state of a checkpoint (collective); returns its record.
 
     Sets the state functions, the time (loads, boundary values and updaters
@@ -263,8 +286,10 @@ def load_checkpoint(sim, path: str | Path) -> dict:
         from hyperfem.dynamics.incremental import DynamicState
 
         p = sim.problem
+        assert isinstance(p, _DynamicRun)  # the time step of a dynamic run
         p.restore(DynamicState(t, p.u.x.array, p.v.x.array, p.a.x.array))
     else:
+        assert isinstance(sim.problem, SolidProblem)  # a quasi-static run's problem
         sim.problem.set_time(t)
     if sim.solver is not None:  # the explicit scheme runs its hooks before every force assembly
         sim.solver.refresh()  # state hooks (e.g. a material's rotation field) at the loaded state
@@ -301,33 +326,34 @@ class Checkpoint(Output):
         self._completed = False
         self._history: History | None = None
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Check the folder (on every rank) before any solve; a history file for this run."""
         ensure_output_dir(self.folder, sim.comm)
         sim.files["checkpoint"] = str(self.folder)
         self.last = 0
         self._history = History(sim.comm)
 
-    def _save(self, sim) -> None:
+    def _save(self, sim: Simulation) -> None:
         self.path = save_checkpoint(sim, self.folder, keep=self.keep, history=self._history)
         self.last, self._completed = sim.step, sim.completed
         sim.files["checkpoint"] = str(self.path)
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Save when ``every`` steps have passed since the last checkpoint."""
         if step is None or self.every is None:
             return
+        assert self.last is not None  # set by start
         if sim.step - self.last >= self.every:
             self._save(sim)
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """At the end, or after a failed step: the last converged state (not after other errors)."""
         if sim.step == self.last and self.path is not None and self._completed == sim.completed:
             return  # this state is checkpointed already, with the same outcome
         if (sim.completed and self.final) or (not sim.completed and sim.state_converged and sim.rows):
             self._save(sim)
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Count the steps from the restart."""
         self.last = sim.step
 

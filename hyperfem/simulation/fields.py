@@ -31,14 +31,22 @@ from __future__ import annotations
 import difflib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, TypeAlias, cast
 
 import ufl
 
 from hyperfem.errors import ParameterError
 from hyperfem.kinematics import deformation_gradient
-from hyperfem.simulation.measures import CellFunctions, cauchy_stress
+from hyperfem.simulation.measures import CellFunctions, Material, cauchy_stress
 from hyperfem.simulation.outputs import VTX, XDMF, Output
 from hyperfem.solver.stepping import StepRecord
+
+if TYPE_CHECKING:
+    from dolfinx import fem
+
+    from hyperfem.loading.activation import Activation
+    from hyperfem.problem.protocol import SolidProblem
+    from hyperfem.simulation.runner import Simulation
 
 __all__ = ["DEFAULT_FIELDS", "FIELDS", "FORMATS", "FieldOutput", "cell_field_expressions", "von_mises"]
 
@@ -54,6 +62,11 @@ FORMATS = ("vtx", "xdmf")
 _NEEDS_MATERIALS = ("cauchy_stress", "von_mises")
 
 Expr = ufl.core.expr.Expr
+Materials = Material | Mapping[str, Material] | Mapping[str | None, Material]
+"""One energy for the whole body, or region name (``None``: everywhere) → energy."""
+ActivationPart: TypeAlias = "Activation | Expr | float"
+ActivationSpec: TypeAlias = "ActivationPart | Mapping[str, ActivationPart] | Mapping[str | None, ActivationPart]"
+"""An :class:`~hyperfem.loading.Activation` (or its expression), or region name → one."""
 
 
 def von_mises(sigma: Expr) -> Expr:
@@ -79,21 +92,27 @@ def _check_names(fields: Sequence[str]) -> list[str]:
     return names
 
 
-def _activation_parts(activation) -> Mapping[str | None, Expr | float]:
+def _activation_parts(activation: ActivationSpec) -> Mapping[str | None, Expr | float]:
     # Boundary: a user activation is an Activation (with .expr) or a plain UFL expression / number.
     if isinstance(activation, Mapping):
-        return {r: getattr(a, "expr", a) for r, a in activation.items()}
-    return {None: getattr(activation, "expr", activation)}
+        return {r: _expression(a) for r, a in activation.items()}
+    return {None: _expression(activation)}
+
+
+def _expression(part: ActivationPart) -> Expr | float:
+    """The ``expr`` of an activation (or of any object with one), else the expression or number itself."""
+    expr = getattr(part, "expr", None)
+    return cast("Expr | float", part) if expr is None else expr
 
 
 def cell_field_expressions(
-    problem,
+    problem: SolidProblem,
     names: Sequence[str],
-    materials=None,
+    materials: Materials | None = None,
     *,
-    fibres=None,
-    activation=None,
-) -> dict:
+    fibres: fem.Function | None = None,
+    activation: ActivationSpec | None = None,
+) -> dict[str, Expr | float | Mapping[str | None, Expr | float]]:
     """The UFL expressions of the cell fields among ``names`` (``displacement`` is not one).
 
     Args:
@@ -115,12 +134,13 @@ def cell_field_expressions(
         ParameterError: An unknown name, or a field without what it needs.
     """
     names = _check_names(names)
-    out = {}
+    out: dict[str, Expr | float | Mapping[str | None, Expr | float]] = {}
     F = deformation_gradient(problem.displacement())
     if any(n in names for n in _NEEDS_MATERIALS):
         if materials is None:
             raise ParameterError("FieldOutput: cauchy_stress and von_mises need materials= (region -> energy)")
-        mapping = dict(materials) if isinstance(materials, Mapping) else {None: materials}
+        mapping: dict[str | None, Material]
+        mapping = dict(materials.items()) if isinstance(materials, Mapping) else {None: materials}
         sigma = cauchy_stress(problem, mapping)
         if "cauchy_stress" in names:
             out["cauchy_stress"] = sigma
@@ -166,11 +186,11 @@ class FieldOutput(Output):
     def __init__(
         self,
         folder: str | Path,
-        materials=None,
+        materials: Materials | None = None,
         *,
         fields: Sequence[str] = DEFAULT_FIELDS,
-        fibres=None,
-        activation=None,
+        fibres: fem.Function | None = None,
+        activation: ActivationSpec | None = None,
         format: str = "vtx",
         degree: int | str = 0,
         times: Sequence[float] | None = None,
@@ -201,7 +221,7 @@ class FieldOutput(Output):
         """Name → the cell-wise function written (after :meth:`start`; empty before)."""
         return {f.name: f for f in self._cells.functions} if self._cells is not None else {}
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Compile the expressions and open the files (checks the folder on every rank first)."""
         base = sim.fields.base
         cell_names = [n for n in self.names if n != "displacement"]
@@ -211,6 +231,7 @@ class FieldOutput(Output):
         degree = self.degree
         if degree == "auto":
             degree = 0 if self.format == "xdmf" else max(0, base.degree - 1)
+        assert isinstance(degree, int)  # __init__ accepts an integer or "auto"
         self._cells = CellFunctions(base.domain, expressions, degree) if expressions else None
         nodal = sim.fields.output() if "displacement" in self.names else []
         cells = self._cells.functions if self._cells is not None else []
@@ -228,23 +249,23 @@ class FieldOutput(Output):
         for writer in self._writers:
             writer.start(sim)
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Refresh the cell fields and write the frames that are due."""
         if self._cells is not None:
             self._cells.refresh()
         for writer in self._writers:
             writer.write(sim, step)
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """Close the files."""
         for writer in self._writers:
             writer.close(sim)
 
-    def state(self, sim) -> dict:
+    def state(self, sim: Simulation) -> dict:
         """The writers' states (remaining output times, files so far)."""
         return {"writers": [w.state(sim) for w in self._writers]}
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Continue the writers (their first frame: the restart state)."""
         if self._cells is not None:
             self._cells.refresh()
@@ -252,7 +273,7 @@ class FieldOutput(Output):
         for k, writer in enumerate(self._writers):
             writer.restart(sim, saved[k] if k < len(saved) else None)
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """The files of a restarted run, per writer."""
         out = {}
         for writer in self._writers:

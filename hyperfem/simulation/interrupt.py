@@ -25,6 +25,9 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
+from types import FrameType
+from typing import Any
 
 from mpi4py import MPI
 
@@ -33,6 +36,8 @@ __all__ = ["InterruptGuard"]
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 REPEAT_GRACE = 1.0
 """Seconds after the first signal during which a second of the same kind is taken as the same request."""
+_Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers
+"""What ``signal.signal`` installs: a function, ``SIG_DFL`` or ``SIG_IGN``."""
 
 
 class InterruptGuard:
@@ -46,7 +51,7 @@ class InterruptGuard:
         self.comm = comm
         self.signal: int = 0
         self._first: dict[int, float] = {}  # signal -> when its first copy was handled
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, _Handler] = {}
 
     def __enter__(self) -> InterruptGuard:
         if threading.current_thread() is threading.main_thread():
@@ -58,12 +63,12 @@ class InterruptGuard:
                 signal.signal(sig, self._handle)
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         for sig, previous in self._previous.items():
             signal.signal(sig, previous)
         self._previous.clear()
 
-    def _handle(self, signum: int, frame) -> None:
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
         now = time.monotonic()
         if signum not in self._first:  # the first of its kind: a request to stop after the step
             self._first[signum] = now

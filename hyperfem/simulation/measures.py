@@ -25,6 +25,7 @@ from __future__ import annotations
 import numbers
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 import ufl
@@ -39,6 +40,13 @@ from hyperfem.simulation.outputs import VTX, Output
 from hyperfem.simulation.reactions import ReactionForce
 from hyperfem.solver.stepping import StepRecord
 
+if TYPE_CHECKING:
+    from dolfinx import mesh as dmesh
+
+    from hyperfem.mesh.domain import Domain
+    from hyperfem.problem.protocol import SolidProblem
+    from hyperfem.simulation.runner import Simulation
+
 __all__ = [
     "BoundaryAverage",
     "CellFunctions",
@@ -51,6 +59,10 @@ __all__ = [
 ]
 
 Expr = ufl.core.expr.Expr
+Material = SplitEnergy | Callable[[Expr], Expr]
+"""An energy ``psi(F)`` or a :class:`~hyperfem.problem.SplitEnergy`."""
+_Compiled: TypeAlias = "tuple[np.ndarray | None, fem.Expression | tuple[fem.Form, int]]"
+"""Cells (``None``: all) and how to fill them: an expression to interpolate, or an average form and its rule."""
 
 
 class _Column(Output):
@@ -58,7 +70,7 @@ class _Column(Output):
 
     name: str
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         return {self.name: sim.rows[-1][self.name]} if sim.rows else {}
 
 
@@ -75,15 +87,16 @@ class Probe(_Column):
         self.name = name
         self._probe: PointProbe | None = None
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Locate the points (collective)."""
         self._probe = PointProbe(sim.fields.base.domain.mesh, self.points)
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """The displacement at the points (the same on every rank)."""
+        assert self._probe is not None  # located by start
         return {self.name: self._probe(sim.fields.displacement).tolist()}
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """The points and their last displacement."""
         return {"probe_points": self.points, **super().summary(sim, summary)}
 
@@ -107,12 +120,13 @@ class Reaction(_Column):
         self.name = name or f"reaction_{boundary}"
         self._force: ReactionForce | None = None
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Compile the form."""
         self._force = ReactionForce(sim.fields.base, self.boundary)
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """The force vector."""
+        assert self._force is not None  # compiled by start
         return {self.name: self._force().tolist()}
 
 
@@ -134,7 +148,7 @@ class BoundaryAverage(_Column):
         self.name = name or f"u{component}_{boundary}"
         self.area = float("nan")
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Compile the form and measure the boundary."""
         domain = sim.fields.base.domain
         if not 0 <= self.component < domain.gdim:
@@ -144,7 +158,7 @@ class BoundaryAverage(_Column):
         self.area = domain.comm.allreduce(fem.assemble_scalar(fem.form(1.0 * ds)))
         self._form = fem.form(sim.fields.displacement[self.component] * ds)
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """The mean."""
         return {self.name: self._comm.allreduce(fem.assemble_scalar(self._form)) / self.area}
 
@@ -179,7 +193,7 @@ class RadialBulge(_Column):
         d = Y - self.origin
         return d - np.outer(d @ self.axis, self.axis)
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Tabulate the node coordinates."""
         space = sim.fields.displacement.function_space
         self._X = space.tabulate_dof_coordinates()
@@ -187,7 +201,7 @@ class RadialBulge(_Column):
         self._r0 = np.sqrt((self._perp(self._X) ** 2).sum(axis=1))
         self._comm = space.mesh.comm
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """The bulge (``-inf`` on a rank without nodes before the reduction)."""
         u = np.zeros_like(self._X)
         u[:, : self._gdim] = sim.fields.displacement.x.array.reshape(-1, self._gdim)
@@ -196,7 +210,9 @@ class RadialBulge(_Column):
         return {self.name: self._comm.allreduce(local, op=MPI.MAX)}
 
 
-def cauchy_stress(problem, materials: Mapping[str | None, SplitEnergy | Callable[[Expr], Expr]]) -> dict:
+def cauchy_stress(
+    problem: SolidProblem, materials: Mapping[str | None, SplitEnergy | Callable[[Expr], Expr]]
+) -> dict[str | None, Expr]:
     r"""Cauchy stress :math:`\sigma = J^{-1} P F^T`, :math:`P = \partial W/\partial F`, per region.
 
     For the three-field problem :math:`W = \psi_\text{iso}(F) + U(\theta) + p\,(\det F - \theta)`
@@ -212,13 +228,13 @@ def cauchy_stress(problem, materials: Mapping[str | None, SplitEnergy | Callable
         Region → UFL tensor, for :class:`CellVTX`.
     """
     F = ufl.variable(deformation_gradient(problem.displacement()))
-    mixed = isinstance(problem, MixedHyperelasticProblem)
+    mixed = problem if isinstance(problem, MixedHyperelasticProblem) else None
     out = {}
     for region, material in materials.items():
-        if mixed:
+        if mixed is not None:
             if not isinstance(material, SplitEnergy):
                 raise ParameterError(f"cauchy_stress: the three-field problem needs SplitEnergy materials ({region!r})")
-            W = material.mixed_energy(F, problem.p, problem.theta)
+            W = material.mixed_energy(F, mixed.p, mixed.theta)
         else:
             W = material.energy(F) if isinstance(material, SplitEnergy) else material(F)
         out[region] = ufl.diff(W, F) * F.T / ufl.det(F)
@@ -243,11 +259,13 @@ class CellFunctions:
         functions: The functions, in the order of ``fields``.
     """
 
-    def __init__(self, domain, fields: Mapping[str, Expr | float | Mapping[str | None, Expr | float]], degree: int = 0):
+    def __init__(
+        self, domain: Domain, fields: Mapping[str, Expr | float | Mapping[str | None, Expr | float]], degree: int = 0
+    ) -> None:
         if not (isinstance(degree, numbers.Integral) and not isinstance(degree, bool) and degree >= 0):
             raise ParameterError(f"CellVTX: degree must be an integer >= 0, got {degree!r}")
         mesh = domain.mesh
-        self._parts: list[tuple[fem.Function, list]] = []
+        self._parts: list[tuple[fem.Function, list[_Compiled]]] = []
         self.functions: list[fem.Function] = []
         self._volumes: dict[int, fem.Function] = {}
         for name, spec in fields.items():
@@ -257,7 +275,7 @@ class CellFunctions:
             V = fem.functionspace(mesh, ("DG", degree, shape) if shape else ("DG", degree))
             f = fem.Function(V, name=name)
             points = V.element.interpolation_points
-            compiled = []
+            compiled: list[_Compiled] = []
             for region, e in parts.items():
                 cells = None if region is None else domain.cells(region)
                 rule = quadrature_degree(e)
@@ -277,7 +295,7 @@ class CellFunctions:
             self._parts.append((f, compiled))
             self.functions.append(f)
 
-    def _cell_volumes(self, mesh, rule: int) -> fem.Function:
+    def _cell_volumes(self, mesh: dmesh.Mesh, rule: int) -> fem.Function:
         """Cell volumes on the quadrature rule of degree ``rule`` (that of the averages: exact ratio for constants)."""
         if rule not in self._volumes:
             V0 = fem.functionspace(mesh, ("DG", 0))
@@ -290,7 +308,7 @@ class CellFunctions:
             self._volumes[rule] = volumes
         return self._volumes[rule]
 
-    def _average(self, f: fem.Function, form, rule: int, cells) -> None:
+    def _average(self, f: fem.Function, form: fem.Form, rule: int, cells: np.ndarray | None) -> None:
         """``f`` on ``cells`` (all for ``None``) := the cell averages, ∫ e w dx / |K|."""
         mesh = f.function_space.mesh
         b = fem.assemble_vector(form)
@@ -312,7 +330,8 @@ class CellFunctions:
         for f, compiled in self._parts:
             for cells, expr in compiled:
                 if isinstance(expr, tuple):
-                    self._average(f, *expr, cells)
+                    form, rule = expr
+                    self._average(f, form, rule, cells)
                 elif cells is None:
                     f.interpolate(expr)
                 else:
@@ -320,7 +339,7 @@ class CellFunctions:
             f.x.scatter_forward()
 
 
-def quadrature_degree(e) -> int | None:
+def quadrature_degree(e: Expr) -> int | None:
     """The rule of the quadrature-space coefficients in ``e`` (their highest degree), or ``None`` if it has none."""
     from ufl.algorithms import extract_coefficients
 
@@ -360,11 +379,12 @@ class CellVTX(VTX):
         self.degree = degree
         self._cells: CellFunctions | None = None
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Compile the expressions and open the file."""
         self._cells = CellFunctions(sim.fields.base.domain, self.fields, self.degree)
         self.functions = self._cells.functions
         super().start(sim)
 
     def _refresh(self) -> None:
+        assert self._cells is not None  # compiled by start
         self._cells.refresh()

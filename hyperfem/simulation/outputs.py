@@ -48,8 +48,9 @@ import json
 import os
 import shutil
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from dolfinx import fem
@@ -57,6 +58,12 @@ from dolfinx import fem
 from hyperfem.errors import ParameterError
 from hyperfem.io.results import VTXWriter, XDMFWriter, ensure_output_dir, flatten_row, on_rank0, write_json
 from hyperfem.solver.stepping import StepRecord
+
+if TYPE_CHECKING:
+    from mpi4py import MPI
+
+    from hyperfem.simulation.runner import Simulation
+    from hyperfem.solver.newton import SolveRecord
 
 __all__ = [
     "XDMF",
@@ -79,28 +86,28 @@ __all__ = [
 class Output:
     """Base of the observers of a simulation; every hook does nothing by default."""
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Before the first solve (the initial state is not recorded yet)."""
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """Columns for the row of the current state (``step`` is ``None`` for the initial state)."""
         return {}
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Write the current state; ``sim.rows[-1]`` is its complete row."""
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """Entries for the summary (``summary`` holds the entries collected so far)."""
         return {}
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """After the last step, or after a failure (``sim.completed`` tells which)."""
 
-    def state(self, sim) -> dict | None:
+    def state(self, sim: Simulation) -> dict | None:
         """What a checkpoint keeps of this output (JSON-serialisable), or ``None``."""
         return None
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Continue from a checkpoint: ``sim.rows`` holds the rows so far, ``state`` what :meth:`state` returned."""
 
 
@@ -135,13 +142,13 @@ class _TimeSeries(Output):
         self.functions = None if functions is None else list(functions)
         self._pending = None if times is None else sorted(float(t) for t in times)
         self.role = role
-        self._file = None
+        self._file: VTXWriter | XDMFWriter | None = None
         self._parts: list[str] = []
 
-    def _open(self, comm, path: Path, functions: list[fem.Function]):
+    def _open(self, comm: MPI.Comm, path: Path, functions: list[fem.Function]) -> VTXWriter | XDMFWriter:
         raise NotImplementedError
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Open the file (on a restart: the continuation file, see :func:`continuation_path`)."""
         functions = self.functions if self.functions is not None else sim.fields.output()
         path = self.path if sim.restarted_from is None else continuation_path(self.path, sim.step)
@@ -149,7 +156,7 @@ class _TimeSeries(Output):
         self._parts = [str(path)]
         sim.files[self.role] = str(path)
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Append a frame (at the initial state, at every step or when passing the next output time)."""
         due = step is None or self._pending is None
         while self._pending and self._pending[0] <= sim.time + 1e-9 * max(1.0, abs(sim.time)):
@@ -157,31 +164,33 @@ class _TimeSeries(Output):
             due = True
         if due:
             self._refresh()
+            assert self._file is not None  # opened by start
             self._file.write(sim.time)
 
     def _refresh(self) -> None:
         """Bring the functions up to date before a frame (for subclasses that compute them)."""
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """Close the file."""
         if self._file is not None:
             self._file.close()
             self._file = None
 
-    def state(self, sim) -> dict:
+    def state(self, sim: Simulation) -> dict:
         """The output times still to come and the files written so far."""
         return {"pending": self._pending, "parts": list(self._parts)}
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Keep the remaining output times; the first frame of the new file is the restart state."""
         if state is not None:
             if state.get("pending") is not None and self._pending is not None:
                 self._pending = [float(t) for t in state["pending"]]
             self._parts = [*state.get("parts", []), *self._parts]
         self._refresh()
+        assert self._file is not None  # opened by start
         self._file.write(sim.time)
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """The files of a restarted run (``<role>_parts``, in order)."""
         return {f"{self.role}_parts": list(self._parts)} if len(self._parts) > 1 else {}
 
@@ -212,7 +221,7 @@ class VTX(_TimeSeries):
     ):
         super().__init__(path, functions, times, role)
 
-    def _open(self, comm, path: Path, functions: list[fem.Function]) -> VTXWriter:
+    def _open(self, comm: MPI.Comm, path: Path, functions: list[fem.Function]) -> VTXWriter:
         return VTXWriter(comm, path, functions)
 
 
@@ -240,7 +249,7 @@ class XDMF(_TimeSeries):
     ):
         super().__init__(path, functions, times, role)
 
-    def _open(self, comm, path: Path, functions: list[fem.Function]) -> XDMFWriter:
+    def _open(self, comm: MPI.Comm, path: Path, functions: list[fem.Function]) -> XDMFWriter:
         return XDMFWriter(comm, path, functions)
 
 
@@ -259,16 +268,16 @@ class JSONSummary(Output):
         self.path = Path(path)
         self.rows = rows
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Check the folder (on every rank) before any solve."""
         ensure_output_dir(self.path.parent, sim.comm)
         sim.files["summary"] = str(self.path)
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Rewrite the file."""
         write_json(self.path, sim.summary(rows=self.rows), sim.comm)
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """The final summary (``completed`` and ``error`` set)."""
         self.write(sim, None)
 
@@ -290,13 +299,13 @@ class CSVLog(Output):
         self.every = _check_every("CSVLog", every)
         self._columns: list[str] | None = None
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Check the folder (on every rank) before any solve."""
         ensure_output_dir(self.path.parent, sim.comm)
         sim.files["csv"] = str(self.path)
         self._columns = None
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Append the current row (if it is due)."""
         if not _due(step, self.every):
             return
@@ -304,18 +313,18 @@ class CSVLog(Output):
         first = self._columns is None
         if first:
             self._columns = list(row)
-        columns = self._columns
+        columns = self._columns  # set above for the first row
 
         def append() -> None:
             with self.path.open("w" if first else "a", newline="") as fh:
-                writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+                writer = csv.DictWriter(fh, fieldnames=columns or [], extrasaction="ignore")
                 if first:
                     writer.writeheader()
                 writer.writerow(row)
 
         on_rank0(sim.comm, append, f"cannot write {self.path}")
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Rewrite the file with the rows kept in the checkpoint (those that were due)."""
         rows = [flatten_row(row) for row in sim.rows if int(row.get("step", 0)) % self.every == 0]
         self._columns = list(rows[0]) if rows else None
@@ -331,7 +340,7 @@ class CSVLog(Output):
         on_rank0(sim.comm, rewrite, f"cannot write {self.path}")
 
 
-def _norms(records) -> list[list[float]]:
+def _norms(records: Sequence[SolveRecord]) -> list[list[float]]:
     return [[float(x) for x in r.residual_norms] for r in records]
 
 
@@ -352,14 +361,14 @@ class ConvergenceLog(Output):
     def __init__(self, path: str | Path):
         self.path = Path(path)
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Check the folder and empty the file (on every rank) before any solve."""
         ensure_output_dir(self.path.parent, sim.comm)
         sim.files["convergence"] = str(self.path)
         if sim.restarted_from is None:
             on_rank0(sim.comm, lambda: self.path.write_text(""), f"cannot write {self.path}")
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Append the line of the current state."""
         if step is None:
             initial = [sim.initial_solve] if sim.initial_solve is not None else []
@@ -382,7 +391,7 @@ class ConvergenceLog(Output):
 
         on_rank0(sim.comm, append, f"cannot write {self.path}")
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Keep the lines of the steps up to the restart (those of later, lost steps are dropped)."""
         upto = sim.step
 
@@ -426,7 +435,7 @@ class Progress(Output):
         self.bar = bar
         self._drawn = False
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Print the mesh-quality line before the first solve (rank 0)."""
         super().start(sim)
         if self.bar is None:
@@ -437,7 +446,7 @@ class Progress(Output):
         if sim.mesh_quality is not None and sim.comm.rank == 0:
             print(sim.mesh_quality.summary_line(), flush=True)
 
-    def _bar_line(self, sim, text: str) -> str:
+    def _bar_line(self, sim: Simulation, text: str) -> str:
         span = sim.policy.end - self._t0
         fraction = 1.0 if span == 0 else min(max((sim.time - self._t0) / span, 0.0), 1.0)
         width = 20
@@ -446,7 +455,7 @@ class Progress(Output):
         columns = shutil.get_terminal_size((100, 24)).columns
         return (head + text)[: max(columns - 1, len(head))]
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Print (or redraw the bar)."""
         due = self.initial if step is None else step.step % self.every == 0
         if not (due and sim.comm.rank == 0):
@@ -459,7 +468,7 @@ class Progress(Output):
         else:
             print(text, flush=True)
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """End the bar's line."""
         if self._drawn and sim.comm.rank == 0:
             print(flush=True)
@@ -479,9 +488,16 @@ class Quantity(Output):
         self.name = name
         self.value = value
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """``{name: value()}``."""
         return {self.name: self.value()}
+
+
+class RowRecorder(Protocol):
+    """What :class:`Recorder` reads: ``record(step)`` (``summary()`` and ``rows`` are optional)."""
+
+    def record(self, step: StepRecord | None) -> Mapping[str, object]:
+        """The columns of the current state (``step`` is ``None`` for the initial state)."""
 
 
 class Recorder(Output):
@@ -497,25 +513,25 @@ class Recorder(Output):
             summary covers the states it recorded).
     """
 
-    def __init__(self, recorder, *, every: int = 1):
+    def __init__(self, recorder: RowRecorder, *, every: int = 1) -> None:
         self.recorder = recorder
         self.every = _check_every("Recorder", every)
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """The recorder's row (if it is due)."""
         return dict(self.recorder.record(step)) if _due(step, self.every) else {}
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """The recorder's summary, if it has one."""
         make = getattr(self.recorder, "summary", None)  # boundary: a user recorder may not summarize
         return dict(make()) if callable(make) else {}
 
-    def state(self, sim) -> dict | None:
+    def state(self, sim: Simulation) -> dict | None:
         """The recorder's ``rows`` list, if it keeps one (e.g. :class:`~hyperfem.dynamics.Diagnostics`)."""
         rows = getattr(self.recorder, "rows", None)  # boundary: a user recorder may keep no rows
         return {"rows": list(rows)} if isinstance(rows, list) else None
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Give the recorder back its rows."""
         rows = getattr(self.recorder, "rows", None)  # boundary: a user recorder may keep no rows
         if state is not None and isinstance(rows, list):
@@ -532,7 +548,7 @@ class OnStep(Output):
     def __init__(self, callback: Callable[[StepRecord], None]):
         self.callback = callback
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Call the callback (after the row is complete)."""
         if step is not None:
             self.callback(step)
@@ -550,7 +566,7 @@ class Derived(Output):
         self.name = name
         self.value = value
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """``{name: value(summary)}`` once a step is accepted."""
         return {self.name: self.value(summary)} if sim.step > 0 else {}
 
@@ -574,7 +590,7 @@ def format_summary(summary: dict) -> str:
     lines.append(f"  wall time (stepping, after form compilation): {summary['wall_time']:.2f} s")
     files = summary.get("files", {})
     if files:
-        shown = []
+        shown: list[str] = []
         for role, path in files.items():
             parts = summary.get(f"{role}_parts") or [path]  # a restarted time series: every file, in order
             shown.extend(_file_text(p) for p in parts)

@@ -31,12 +31,17 @@ import json
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hyperfem.errors import OutputError, ParameterError
 from hyperfem.io.results import flatten_row
 from hyperfem.simulation.outputs import read_convergence
+
+if TYPE_CHECKING:
+    from mpi4py import MPI
 
 __all__ = [
     "dynamics_time_series",
@@ -53,7 +58,7 @@ ENERGY_TOTAL = "total = kinetic + elastic − external work"
 """Legend of the total energy of a dynamic run (constant without damping: the external work is in it)."""
 
 
-def _pyplot():
+def _pyplot() -> ModuleType:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -62,7 +67,9 @@ def _pyplot():
     return plt
 
 
-def _number(value) -> float | None:
+def _number(value: str | float | None) -> float | None:
+    if value is None:
+        return None
     try:
         return float(value)
     except (TypeError, ValueError):
@@ -135,7 +142,7 @@ def _run_summary(source: Path) -> dict:
     return {}
 
 
-def _point(values) -> str:
+def _point(values: Sequence[float]) -> str:
     return "(" + ", ".join(f"{float(v):g}" for v in values) + ")"
 
 
@@ -174,10 +181,10 @@ def quantity(column: str, meta: dict | None = None, *, unit: bool = True) -> str
         where = _point(points[i]) if i < len(points) else f"probe {i}"
         return done(f"displacement u_{AXES[c]} at {where}", "m")
     if m := re.fullmatch(r"reaction_(.+)_([FM])([xyz])", column):
-        name, kind, c = m[1], m[2], m[3]
+        name, kind, axis = m[1], m[2], m[3]
         what = "reaction force" if kind == "F" else "reaction moment"
         where = "on all supports" if name == "total" else f"on {name!r}"
-        return done(f"{what} {kind}_{c} {where}", "N" if kind == "F" else "N m")
+        return done(f"{what} {kind}_{axis} {where}", "N" if kind == "F" else "N m")
     if m := re.fullmatch(r"u(\d)_(.+)", column):
         return done(f"mean displacement u_{AXES[int(m[1])]} on {m[2]!r}", "m")
     if m := re.fullmatch(r"p(\d+)_([xyz])", column):
@@ -213,7 +220,7 @@ def load_displacement(
     load: str | None = None,
     displacement: str | None = None,
     output: str | Path | None = None,
-    comm=None,
+    comm: MPI.Comm | None = None,
 ) -> Path | None:
     """Plot a load column against a displacement column of a run's rows.
 
@@ -248,6 +255,7 @@ def load_displacement(
             raise ParameterError(
                 f"load_displacement: no {what} column {name!r} in {source} (columns: {', '.join(rows[0])})"
             )
+    assert displacement is not None  # checked above
     meta = _run_summary(source)
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.8))
@@ -274,7 +282,9 @@ def _convergence_file(source: Path) -> Path:
     return found[0]
 
 
-def newton_convergence(source: str | Path, *, output: str | Path | None = None, comm=None) -> Path | None:
+def newton_convergence(
+    source: str | Path, *, output: str | Path | None = None, comm: MPI.Comm | None = None
+) -> Path | None:
     """Plot the residual norm of every Newton iterate of every step (semilog; colour = step).
 
     Solves of rejected attempts are dotted grey.
@@ -342,7 +352,7 @@ def _test_point(d: dict[str, list[float]], meta: dict) -> tuple[list[tuple[str, 
 
 
 def dynamics_time_series(
-    sources: str | Path | Sequence[str | Path], *, output: str | Path | None = None, comm=None
+    sources: str | Path | Sequence[str | Path], *, output: str | Path | None = None, comm: MPI.Comm | None = None
 ) -> Path | None:
     """Motion of the test point, energies and volume ratio of dynamic runs, one panel each.
 
@@ -404,7 +414,9 @@ def dynamics_time_series(
     return out
 
 
-def response_history(source: str | Path, *, output: str | Path | None = None, comm=None) -> Path | None:
+def response_history(
+    source: str | Path, *, output: str | Path | None = None, comm: MPI.Comm | None = None
+) -> Path | None:
     """Displacement and reaction force against time, one panel each (the load–displacement plot of a dynamic run).
 
     Args:
@@ -446,7 +458,7 @@ def response_history(source: str | Path, *, output: str | Path | None = None, co
     return out
 
 
-def plot_run(folder: str | Path, *, comm=None) -> list[Path]:
+def plot_run(folder: str | Path, *, comm: MPI.Comm | None = None) -> list[Path]:
     """Every plot the files in a run's output folder allow; returns the PNG paths (rank 0; ``[]`` elsewhere).
 
     Quasi-static runs: load–displacement when the rows have a displacement
@@ -458,7 +470,7 @@ def plot_run(folder: str | Path, *, comm=None) -> list[Path]:
     if comm is not None and comm.rank != 0:
         return []
     folder = Path(folder)
-    made = []
+    made: list[Path | None] = []  # None only on ranks other than 0 (these calls have no comm)
     rows = read_rows(folder)
     dynamic = _dynamic(rows, _run_summary(folder))
     if dynamic:
@@ -469,4 +481,4 @@ def plot_run(folder: str | Path, *, comm=None) -> list[Path]:
         pass
     if list(folder.glob("*.jsonl")):
         made.append(newton_convergence(folder))
-    return made
+    return [path for path in made if path is not None]

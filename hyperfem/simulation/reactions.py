@@ -80,8 +80,9 @@ and which part is whose is not in the residual. Two ways to share it
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import ufl
@@ -90,9 +91,22 @@ from mpi4py import MPI
 from ufl.algorithms import extract_coefficients
 
 from hyperfem.errors import ParameterError
-from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepProblem, TimeStepState
+from hyperfem.problem.protocol import (
+    MixedProblemProtocol,
+    SolidProblem,
+    StateHookedProblem,
+    TimeStepProblem,
+    TimeStepState,
+)
 from hyperfem.simulation.outputs import Output
 from hyperfem.solver.stepping import StepRecord
+
+if TYPE_CHECKING:
+    from dolfinx import mesh as dmesh
+
+    from hyperfem.dynamics.incremental import IncrementalProblem
+    from hyperfem.mesh.domain import Domain
+    from hyperfem.simulation.runner import Simulation
 
 __all__ = [
     "SHARED",
@@ -138,7 +152,7 @@ class ReactionResult:
         return out
 
 
-def dirichlet_boundaries(problem) -> dict[str, list[fem.DirichletBC]]:
+def dirichlet_boundaries(problem: SolidProblem | TimeStepState) -> dict[str, list[fem.DirichletBC]]:
     """Boundary name → the DOLFINx conditions that hold dofs there, in the order the problem lists them.
 
     Args:
@@ -153,7 +167,7 @@ def dirichlet_boundaries(problem) -> dict[str, list[fem.DirichletBC]]:
     return out
 
 
-def _on_quadrature_points(expr) -> bool:
+def _on_quadrature_points(expr: ufl.core.expr.Expr) -> bool:
     """Whether ``expr`` holds a function on quadrature points (which has no values on facets)."""
     for c in extract_coefficients(expr):
         element = c.ufl_function_space().ufl_element()
@@ -162,7 +176,7 @@ def _on_quadrature_points(expr) -> bool:
     return False
 
 
-def _region_indicator(itg, mesh) -> ufl.core.expr.Expr | None:
+def _region_indicator(itg: ufl.Integral, mesh: dmesh.Mesh) -> ufl.core.expr.Expr | None:
     """1 on the cells of a cell integral's subdomain (a DG0 function), ``None`` for the whole mesh."""
     ids = itg.subdomain_id()
     if ids in ("everywhere", "otherwise"):
@@ -176,7 +190,7 @@ def _region_indicator(itg, mesh) -> ufl.core.expr.Expr | None:
     return chi
 
 
-def first_piola_stress(base) -> ufl.core.expr.Expr | None:
+def first_piola_stress(base: SolidProblem) -> ufl.core.expr.Expr | None:
     r""":math:`P` of a problem's stored energy as a UFL expression valid on boundary facets, or ``None``.
 
     :math:`P_{ij} = \partial\psi/\partial u\,[x_j e_i]` for the integrand
@@ -197,7 +211,7 @@ def first_piola_stress(base) -> ufl.core.expr.Expr | None:
         psi = itg.integrand()
         if _on_quadrature_points(psi):
             return None
-        def along(i: int, j: int):  # the direction x_j e_i (zero in the other fields)
+        def along(i: int, j: int) -> ufl.core.expr.Expr:  # the direction x_j e_i (zero in the other fields)
             return ufl.as_vector([X[j] if k == i else 0.0 for k in range(n)])
 
         part = ufl.as_matrix([[ufl.derivative(psi, base.u, along(i, j)) for j in range(gdim)] for i in range(gdim)])
@@ -222,7 +236,7 @@ class ReactionForce:
         boundary: Boundary name.
     """
 
-    def __init__(self, problem, boundary: str):
+    def __init__(self, problem: SolidProblem, boundary: str) -> None:
         domain = problem.domain
         self.comm = domain.comm
         W = problem.u.function_space
@@ -276,14 +290,14 @@ class DirichletReactions:
 
     def __init__(
         self,
-        problem,
+        problem: SolidProblem | TimeStepState,
         boundaries: Sequence[str] | None = None,
         *,
         points: Sequence[float] | Mapping[str, Sequence[float]] | None = None,
         total: bool = True,
-        state_hooks: Sequence = (),
+        state_hooks: Sequence[Callable[[], None]] = (),
         shared: str = "traction",
-    ):
+    ) -> None:
         if shared not in SHARED:
             raise ParameterError(f"DirichletReactions: shared must be one of {', '.join(SHARED)}, got {shared!r}")
         base = problem.base if isinstance(problem, TimeStepState) else problem
@@ -311,8 +325,8 @@ class DirichletReactions:
         self._idx = []
         coordinates = []
         for i in range(self.gdim):
-            Vi, dofs = space.sub(i).collapse()
-            dofs = np.asarray(dofs, dtype=np.int64).reshape(-1)
+            Vi, collapsed = space.sub(i).collapse()
+            dofs = np.asarray(collapsed, dtype=np.int64).reshape(-1)
             self._node[dofs] = np.arange(len(dofs))
             self._comp[dofs] = i
             self._idx.append(dofs)
@@ -321,7 +335,7 @@ class DirichletReactions:
             raise ParameterError("DirichletReactions: the displacement components are numbered differently per node")
         self._X = coordinates[0]
 
-        def owned_dofs(bcs) -> np.ndarray:
+        def owned_dofs(bcs: Sequence[fem.DirichletBC]) -> np.ndarray:
             every = [bc.dof_indices()[0] for bc in bcs]
             d = np.unique(np.concatenate(every).astype(np.int64)) if every else np.zeros(0, dtype=np.int64)
             return d[(d < owned) & (self._comp[d] >= 0)]
@@ -337,7 +351,8 @@ class DirichletReactions:
         self.points = {name: self._point(points, name, domain) for name in self._dofs}
         self._residual = fem.form(base.residual)
         self._inertia = self._inertia_form(problem, base)
-        self._traction, self._selector = None, {}
+        self._traction: fem.Form | None = None
+        self._selector: dict[str, fem.Constant] = {}
         if shared == "traction" and self.comm.allreduce(int(np.any(self._count > 1)), op=MPI.MAX):
             self._traction_forms(base, list(held))
 
@@ -352,7 +367,9 @@ class DirichletReactions:
             return "origin"
         return f"reference centroid of {name!r}" if name in self._centroid else "given point"
 
-    def _point(self, points, name: str, domain) -> np.ndarray:
+    def _point(
+        self, points: Sequence[float] | Mapping[str, Sequence[float]] | None, name: str, domain: Domain
+    ) -> np.ndarray:
         """The reference point of ``name``'s moment (records which are centroids)."""
         if name == TOTAL:
             return np.zeros(3)
@@ -374,7 +391,7 @@ class DirichletReactions:
                 )
         return np.array([*c, *[0.0] * (3 - len(c))], dtype=float)
 
-    def _traction_forms(self, base, names: list[str]) -> None:
+    def _traction_forms(self, base: SolidProblem, names: list[str]) -> None:
         r"""One form :math:`\sum_\Gamma s_\Gamma \int_\Gamma (P N)\cdot v\,dA` over the boundaries that share dofs.
 
         Assembled once per boundary with its selector :math:`s_\Gamma = 1`, the others 0.
@@ -386,32 +403,35 @@ class DirichletReactions:
         N = ufl.FacetNormal(domain.mesh)
         test = base.displacement(ufl.TestFunction(base.u.function_space))
         md = {"quadrature_degree": base.quadrature_degree}
-        form = None
+        form: ufl.Form | None = None
         for name in names:
             s = fem.Constant(domain.mesh, 0.0)
             self._selector[name] = s
             term = s * ufl.dot(ufl.dot(P, N), test) * domain.ds(name, metadata=md)
             form = term if form is None else form + term
+        assert form is not None  # names holds the boundaries that share dofs: two at least
         self._traction = fem.form(form)
 
     def _own_traction(self, name: str) -> np.ndarray:
         r""":math:`b^\Gamma_a` of boundary ``name`` at every local dof (owned entries complete)."""
         for other, s in self._selector.items():
-            s.value = 1.0 if other == name else 0.0
+            s.value = 1.0 if other == name else 0.0  # type: ignore[assignment]  # dolfinx: any array-like
         vec = fem.assemble_vector(self._traction)
         vec.scatter_reverse(la.InsertMode.add)
         return vec.array.copy()
 
     @staticmethod
-    def _inertia_form(problem, base):
+    def _inertia_form(problem: SolidProblem | TimeStepState, base: SolidProblem) -> fem.Form | None:
         """:math:`M a + C v` tested with the state's test function (dynamic runs), else ``None``."""
         integrator = problem.integrator if isinstance(problem, TimeStepProblem) else None
         if integrator is None or not integrator.dynamic:
             return None
+        problem = cast("IncrementalProblem", problem)  # the dynamic time step (the explicit scheme has no integrator)
         disp = base.displacement
         test = ufl.TestFunction(base.u.function_space)
         degree = base.degree
         density, domain = problem.density, base.domain
+        assert density is not None  # a dynamic step has a mass density
         form = density.integral(ufl.dot(disp(problem.a), disp(test)), domain, degree)
         damping = problem.damping
         if damping is not None:
@@ -428,13 +448,14 @@ class DirichletReactions:
         """The assembled residual at the current state, without boundary conditions (owned entries complete)."""
         for hook in self._hooks:
             hook()
-        out = None
+        out: np.ndarray | None = None
         for form in (self._residual, self._inertia):
             if form is None:
                 continue
             vec = fem.assemble_vector(form)
             vec.scatter_reverse(la.InsertMode.add)
             out = vec.array.copy() if out is None else out + vec.array
+        assert out is not None  # the residual form is always there
         return out
 
     def shares(self, r: np.ndarray | None = None) -> dict[str, np.ndarray]:
@@ -448,7 +469,7 @@ class DirichletReactions:
         """
         r = self.residual() if r is None else r
         out = {}
-        own = {}
+        own: dict[str, np.ndarray] = {}
         if self.shared == "traction" and self._traction is not None:
             own = {name: self._own_traction(name) for name in self._selector}
         rest = r.copy()  # R_a minus the own tractions of the boundaries that hold dof a
@@ -526,26 +547,32 @@ class Reactions(Output):
         self.reactions: DirichletReactions | None = None
         self._last: dict[str, ReactionResult] = {}
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Find the constrained dofs and compile the forms."""
-        hooks = [*sim.solver.state_hooks]
+        if sim.solver is not None:
+            hooks = [*sim.solver.state_hooks]
+        else:  # a problem that steps itself (explicit): the hooks of the body's energies
+            base = sim.fields.base
+            hooks = [*base.state_hooks] if isinstance(base, StateHookedProblem) else []
         self.reactions = DirichletReactions(
             sim.problem, self.boundaries, points=self.points, total=self.total, state_hooks=hooks, shared=self.shared
         )
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """The reactions of the restart state (for the summary)."""
+        assert self.reactions is not None  # built by start
         self._last = self.reactions()
 
-    def measure(self, sim, step: StepRecord | None) -> dict:
+    def measure(self, sim: Simulation, step: StepRecord | None) -> dict:
         """The columns of every boundary."""
+        assert self.reactions is not None  # built by start
         self._last = self.reactions()
-        row = {}
+        row: dict[str, float] = {}
         for name, result in self._last.items():
             row.update(result.columns(f"{self.prefix}_{name}"))
         return row
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """The last forces and moments by boundary, with the moments' reference points."""
         if not self._last:
             return {}

@@ -33,9 +33,11 @@ exact for a continuous function).
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from dolfinx import fem
@@ -45,6 +47,14 @@ from hyperfem.errors import HyperfemError, OutputError, ParameterError
 from hyperfem.io.results import ensure_output_dir
 from hyperfem.simulation.outputs import Output
 from hyperfem.solver.stepping import StepRecord
+
+if TYPE_CHECKING:
+    import pyvista  # optional, untyped: Any to the checker
+    from mpi4py import MPI
+
+    from hyperfem.simulation.fields import ActivationSpec, Materials
+    from hyperfem.simulation.measures import CellFunctions
+    from hyperfem.simulation.runner import Simulation
 
 __all__ = [
     "DEFAULT_VIEW",
@@ -329,7 +339,7 @@ def _assemble(parts: list[dict], names: list[str]) -> Surface:
 
 
 # -- rendering (pyvista, one process) -------------------------------------------------------------
-def _import_pyvista():
+def _import_pyvista() -> ModuleType:
     try:
         import pyvista
     except ImportError as exc:
@@ -337,7 +347,7 @@ def _import_pyvista():
     return pyvista
 
 
-def require_pyvista(comm, cmap: str | None = None) -> None:
+def require_pyvista(comm: MPI.Comm, cmap: str | None = None) -> None:
     """Check on rank 0 that pyvista can be imported (and knows ``cmap``); the same error on every rank.
 
     Raises:
@@ -365,7 +375,7 @@ def require_pyvista(comm, cmap: str | None = None) -> None:
 
 
 @contextlib.contextmanager
-def _quiet_vtk():
+def _quiet_vtk() -> Iterator[None]:
     """Hide VTK's warnings while rendering (on a machine without X: 'bad X server connection', then EGL)."""
     try:
         from vtkmodules.vtkCommonCore import vtkLogger
@@ -380,7 +390,7 @@ def _quiet_vtk():
         vtkLogger.SetStderrVerbosity(old)
 
 
-def _polydata(pv, points: np.ndarray, triangles: np.ndarray):
+def _polydata(pv: ModuleType, points: np.ndarray, triangles: np.ndarray) -> pyvista.PolyData:
     faces = np.hstack([np.full((len(triangles), 1), 3, dtype=np.int64), triangles]).ravel()
     return pv.PolyData(np.ascontiguousarray(points, dtype=float), faces)
 
@@ -432,7 +442,7 @@ def _with_note(title: str, note: str) -> str:
     return f"{title} ({note})"
 
 
-def _bar_scale(values: np.ndarray, clim) -> tuple[float, str]:
+def _bar_scale(values: np.ndarray, clim: tuple[float, float] | None) -> tuple[float, str]:
     """A power of 1000 to divide the scalar bar's values by, and its note for the title (``"×1e3"``)."""
     top = float(np.max(np.abs(values))) if len(values) else 0.0
     if clim is not None:
@@ -444,7 +454,7 @@ def _bar_scale(values: np.ndarray, clim) -> tuple[float, str]:
 
 
 def _colour_options(
-    body: object,
+    body: pyvista.PolyData,
     values: np.ndarray | None,
     where: str | None,
     scalars: str | None,
@@ -455,6 +465,7 @@ def _colour_options(
     """The ``add_mesh`` options colouring ``body`` by ``values`` (stored on it, scaled), or one colour."""
     if values is None:
         return {"color": "#b9c7d6"}
+    assert scalars is not None  # the values are those of scalars
     factor, unit = _bar_scale(values, clim)
     shown = np.asarray(values, dtype=float) / factor
     (body.point_data if where == "point" else body.cell_data)[scalars] = shown
@@ -475,7 +486,7 @@ def _colour_options(
     return {"scalars": scalars, "cmap": cmap, "clim": limits, "scalar_bar_args": bar, "preference": where}
 
 
-def _add_reference(plotter: object, pv: object, surface: Surface, undeformed: str) -> None:
+def _add_reference(plotter: pyvista.Plotter, pv: ModuleType, surface: Surface, undeformed: str) -> None:
     """Draw the reference body: its feature edges (``"outline"``), a wireframe, or translucent."""
     reference = _polydata(pv, surface.points, surface.triangles)
     if undeformed == "outline":
@@ -490,7 +501,7 @@ def _add_reference(plotter: object, pv: object, surface: Surface, undeformed: st
 
 
 def _place_camera(
-    plotter: object, direction: np.ndarray, upward: np.ndarray, parallel: bool, zoom: float
+    plotter: pyvista.Plotter, direction: np.ndarray, upward: np.ndarray, parallel: bool, zoom: float
 ) -> None:
     """Look at the centre of the bodies from ``direction``, fit them into the picture, then zoom."""
     centre = np.asarray(plotter.bounds, dtype=float).reshape(3, 2).mean(axis=1)
@@ -584,7 +595,7 @@ def render_png(
     *,
     scalars: fem.Function | str | None = DISPLACEMENT,
     root: int = 0,
-    **options,
+    **options: Any,
 ) -> Path | None:
     """Render the deformed boundary of ``u``'s mesh to a PNG (collective; rank ``root`` draws).
 
@@ -607,16 +618,15 @@ def render_png(
     """
     comm = u.function_space.mesh.comm
     path = Path(path)
-    extra = None
-    name = scalars
-    if isinstance(scalars, fem.Function):
-        extra, name = {scalars.name: scalars}, scalars.name
+    extra = {scalars.name: scalars} if isinstance(scalars, fem.Function) else None
+    name = scalars.name if isinstance(scalars, fem.Function) else scalars
     surface = boundary_surface(u, extra, root=root)
     error: tuple[str, str] | None = None
     result = None
     if comm.rank == root:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
+            assert surface is not None  # gathered on root
             result = render_surface(surface, path, scalars=name, **options)
         except HyperfemError as exc:
             error = (type(exc).__name__, str(exc))
@@ -681,9 +691,9 @@ class Render(Output):
         path: str | Path,
         *,
         scalars: str = DISPLACEMENT,
-        materials=None,
-        fibres=None,
-        activation=None,
+        materials: Materials | None = None,
+        fibres: fem.Function | None = None,
+        activation: ActivationSpec | None = None,
         every: int | None = None,
         final: bool = True,
         scale: float = 1.0,
@@ -713,7 +723,7 @@ class Render(Output):
         self.every = every
         self.final = final
         self.title = title
-        self.options = {
+        self.options: dict[str, Any] = {  # keyword arguments of render_surface
             "scale": float(scale),
             "view": tuple(float(v) for v in view),
             "up": tuple(float(v) for v in up),
@@ -726,9 +736,9 @@ class Render(Output):
             "scalar_bar_title": scalar_bar_title,
         }
         self.files: list[str] = []
-        self._cells = None
+        self._cells: CellFunctions | None = None
 
-    def start(self, sim) -> None:
+    def start(self, sim: Simulation) -> None:
         """Check pyvista and the folder (on every rank) and compile the cell field, before any solve."""
         require_pyvista(sim.comm, self.options["cmap"])
         ensure_output_dir(self.path.parent, sim.comm)
@@ -740,19 +750,21 @@ class Render(Output):
             expressions = cell_field_expressions(
                 base, [self.scalars], self.materials, fibres=self.fibres, activation=self.activation
             )
+            import ufl
+
             from hyperfem.simulation.measures import quadrature_degree
 
             # the degree of the stress of a P_k displacement (k - 1); drawn per vertex from degree 1 on. Values
             # kept at quadrature points (a material's rotation field) have cell values only (degree 0).
             parts = [e for spec in expressions.values() for e in (spec.values() if isinstance(spec, dict) else [spec])]
-            on_points = any(quadrature_degree(e) is not None for e in parts if hasattr(e, "ufl_shape"))
+            on_points = any(quadrature_degree(e) is not None for e in parts if isinstance(e, ufl.core.expr.Expr))
             self._cells = CellFunctions(base.domain, expressions, 0 if on_points else max(0, base.degree - 1))
         if self.final:
             sim.files["render"] = str(self.path)
 
-    def draw(self, sim, path: str | Path) -> Path | None:
+    def draw(self, sim: Simulation, path: str | Path) -> Path | None:
         """Draw the current state into ``path`` (collective; the path on rank 0)."""
-        scalars = DISPLACEMENT
+        scalars: str | fem.Function = DISPLACEMENT
         if self._cells is not None:
             self._cells.refresh()
             scalars = self._cells.functions[0]
@@ -761,14 +773,14 @@ class Render(Output):
             title = f"{sim.name}, t = {sim.time:g}"
         return render_png(sim.fields.displacement, path, scalars=scalars, title=title or None, **self.options)
 
-    def write(self, sim, step: StepRecord | None) -> None:
+    def write(self, sim: Simulation, step: StepRecord | None) -> None:
         """Draw after every ``every``-th step."""
         if self.every is not None and step is not None and step.step % self.every == 0:
             path = numbered_path(self.path, step.step)
             self.draw(sim, path)
             self.files.append(str(path))
 
-    def close(self, sim) -> None:
+    def close(self, sim: Simulation) -> None:
         """Draw the final state (after a failure, the last converged one, and a drawing error is only a warning)."""
         if not self.final or not sim.rows or not (sim.completed or sim.state_converged):
             return
@@ -783,15 +795,15 @@ class Render(Output):
 
                 warnings.warn(f"{sim.name}: no final picture: {exc}", RuntimeWarning, stacklevel=2)
 
-    def summary(self, sim, summary: dict) -> dict:
+    def summary(self, sim: Simulation, summary: dict) -> dict:
         """The numbered pictures drawn so far (``renders``), when drawing every k steps."""
         return {"renders": list(self.files)} if self.every is not None else {}
 
-    def state(self, sim) -> dict:
+    def state(self, sim: Simulation) -> dict:
         """The numbered pictures drawn so far."""
         return {"files": list(self.files)}
 
-    def restart(self, sim, state: dict | None) -> None:
+    def restart(self, sim: Simulation, state: dict | None) -> None:
         """Keep the list of pictures of the first run."""
         if state is not None:
             self.files = [str(f) for f in state.get("files", [])]

@@ -43,6 +43,7 @@ import time as _time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from dolfinx import fem
@@ -50,11 +51,15 @@ from mpi4py import MPI
 
 from hyperfem.errors import ConvergenceError, Interrupted, ParameterError
 from hyperfem.mesh.quality import MeshQuality, mesh_quality
-from hyperfem.problem.protocol import MixedProblemProtocol, TimeStepProblem, TimeStepState
+from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepProblem, TimeStepState
 from hyperfem.simulation import checkpoint as _checkpoint
 from hyperfem.simulation.interrupt import InterruptGuard
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
-from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, StepPolicy, StepRecord, run_steps
+from hyperfem.simulation.outputs import Output
+from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, Stage, StepPolicy, StepRecord, run_steps
+
+if TYPE_CHECKING:
+    from hyperfem.dynamics.explicit import ExplicitDynamics
 
 __all__ = ["LARGE_DISPLACEMENT", "LargeDisplacementWarning", "Simulation", "StateFunctions"]
 
@@ -66,11 +71,37 @@ class LargeDisplacementWarning(UserWarning):
     """The displacement is far larger than the body: probably a load or unit error."""
 
 
-def _is_time_step(problem) -> bool:
+class StageType(Protocol):
+    """A :class:`~hyperfem.solver.stepping.Stage` class: ``kind`` and ``stage(problem, solver)``."""
+
+    kind: str
+
+    def __call__(self, problem: Any, solver: Any, /) -> Stage[Any]:
+        """The stage of ``problem`` stepped by ``solver`` (``None`` for a problem that steps itself)."""
+
+
+class StepPreset(Protocol):
+    """A step-control preset: :class:`~hyperfem.solver.LoadStepping`, :class:`~hyperfem.dynamics.TimeStepping`."""
+
+    def policy(self) -> StepPolicy:
+        """The step control it stands for."""
+
+
+@runtime_checkable
+class _Stepper(Protocol):
+    """What moves the state, seen by the summary: a Newton solver, or a problem that steps itself."""
+
+    linear_solver_name: str
+
+    def min_J(self) -> float:
+        """The smallest volume ratio at the quadrature points."""
+
+
+def _is_time_step(problem: SolidProblem | ExplicitDynamics) -> bool:
     return isinstance(problem, TimeStepProblem)
 
 
-def _matched_states(outputs: Sequence, saved: list[dict]) -> list[dict | None]:
+def _matched_states(outputs: Sequence[Output], saved: list[dict]) -> list[dict | None]:
     """The saved state of each output: the k-th output of a type gets the k-th saved state of that type."""
     by_type: dict[str, list] = {}
     for entry in saved:
@@ -102,15 +133,16 @@ class StateFunctions:
         velocity: Velocity of a time step, else ``None``.
     """
 
-    def __init__(self, problem):
+    def __init__(self, problem: SolidProblem | TimeStepState) -> None:
         self.base = problem.base if isinstance(problem, TimeStepState) else problem
-        self._mixed = isinstance(self.base, MixedProblemProtocol)
-        if self._mixed:
-            self.displacement, self.pressure = self.base.update_fields()
+        self._mixed = self.base if isinstance(self.base, MixedProblemProtocol) else None
+        self.pressure: fem.Function | None
+        if self._mixed is not None:
+            self.displacement, self.pressure = self._mixed.update_fields()
         else:
             self.displacement, self.pressure = self.base.u, None
         self._v = problem.v if isinstance(problem, TimeStepState) else None
-        self._v_dofs = None
+        self._v_dofs: np.ndarray | None = None
         self.velocity = self._v
         space = self.base.displacement_space()
         if self._v is not None and space.component():  # the velocity has the state's blocks
@@ -120,9 +152,10 @@ class StateFunctions:
 
     def refresh(self) -> None:
         """Copy the current state into the functions (nothing to do for the displacement problem)."""
-        if self._mixed:
-            self.base.update_fields()
+        if self._mixed is not None:
+            self._mixed.update_fields()
         if self._v_dofs is not None:
+            assert self.velocity is not None and self._v is not None  # set with _v_dofs
             self.velocity.x.array[:] = self._v.x.array[self._v_dofs]
 
     def output(self) -> list[fem.Function]:
@@ -192,17 +225,17 @@ class Simulation:
 
     def __init__(
         self,
-        problem,
+        problem: SolidProblem | ExplicitDynamics,
         solver: NewtonSolver | None,
-        stepper,
-        outputs: Sequence = (),
+        stepper: StepPolicy | StepPreset,
+        outputs: Sequence[Output] = (),
         *,
-        stage: type | None = None,
+        stage: StageType | None = None,
         name: str = "run",
         info: dict | None = None,
         solve_initial: bool = False,
-        case=None,
-    ):
+        case: object = None,
+    ) -> None:
         if solver is None and solve_initial:
             raise ParameterError(f"{name}: solve_initial needs a solver (the problem steps itself)")
         self.problem = problem
@@ -218,7 +251,7 @@ class Simulation:
         self.case = self.info if case is None else case
         self.comm = problem.domain.comm
         self.fields = StateFunctions(problem)
-        self.stage = None
+        self.stage: Stage[Any] | None = None
         self.rows: list[dict] = []
         self.steps: list[StepRecord] = []
         self.files: dict[str, str] = {}
@@ -230,7 +263,7 @@ class Simulation:
         self.state_converged = False
         self.mesh_quality: MeshQuality | None = None
         self._offset = 0
-        self._start = None
+        self._start: float | None = None
         self._wall = 0.0
         self._wall_before = 0.0
         self._warned_size = False
@@ -315,7 +348,8 @@ class Simulation:
                 started.append(output)
             self._start = _time.perf_counter()
             if meta is None:
-                self.initial_solve = self.solver.solve(raise_on_failure=True) if self.solve_initial else None
+                solver = self.solver if self.solve_initial else None  # __init__: solve_initial needs a solver
+                self.initial_solve = solver.solve(raise_on_failure=True) if solver is not None else None
                 self._accept(None, self.initial_solve)
             else:
                 states = _matched_states(self.outputs, meta.get("outputs", []))
@@ -453,9 +487,12 @@ class Simulation:
             output.write(self, record)
         self._check_interrupt()
 
-    def _solver_or_problem(self):
+    def _solver_or_problem(self) -> _Stepper:
         """What moves the state: the Newton solver, or the problem that steps itself (``solver=None``)."""
-        return self.problem if self.solver is None else self.solver
+        if self.solver is not None:
+            return self.solver
+        assert isinstance(self.problem, _Stepper)  # without a solver the problem steps itself (explicit)
+        return self.problem
 
     # -- summary ---------------------------------------------------------------------
     def summary(self, rows: bool = True) -> dict:
