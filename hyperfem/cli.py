@@ -21,6 +21,10 @@ import os
 import sys
 import traceback
 from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from _typeshed import SupportsWrite
 
 __all__ = [
     "ArgumentParser",
@@ -45,7 +49,7 @@ class ArgumentParser(argparse.ArgumentParser):
     Every rank parses the same arguments, so every rank exits together.
     """
 
-    def _print_message(self, message, file=None):  # noqa: D401 - argparse hook
+    def _print_message(self, message: str, file: SupportsWrite[str] | None = None) -> None:  # noqa: D401 - hook
         if _rank() == 0:
             super()._print_message(message, file)
 

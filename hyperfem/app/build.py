@@ -82,7 +82,7 @@ def _groups(case: Case) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
     return facets, cells
 
 
-def check_groups(case: Case, domain) -> None:
+def check_groups(case: Case, domain: Domain) -> None:
     """Every boundary and region the case names must be a physical group of the mesh.
 
     Raises:
@@ -100,7 +100,7 @@ def check_groups(case: Case, domain) -> None:
                 )
 
 
-def check_dimensions(case: Case, domain) -> None:
+def check_dimensions(case: Case, domain: Domain) -> None:
     """Vectors of the case must have one entry per displacement component of the mesh.
 
     Raises:
@@ -128,7 +128,7 @@ def check_dimensions(case: Case, domain) -> None:
         fail("fibres.direction", f"{len(case.fibres.options['direction'])} components")
 
 
-def check_mesh(case: Case, domain, *, echo: bool = False) -> None:
+def check_mesh(case: Case, domain: Domain, *, echo: bool = False) -> None:
     """Group names (:func:`check_groups`), vector lengths (:func:`check_dimensions`) and cell orientation (collective).
 
     Args:

@@ -28,7 +28,9 @@ import argparse
 import runpy
 import sys
 import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any, TextIO, TypeVar
 
 from mpi4py import MPI
 
@@ -307,7 +309,10 @@ def _say(text: str) -> None:
         print(text, flush=True)
 
 
-def _on_rank0(action):
+_T = TypeVar("_T")
+
+
+def _on_rank0(action: Callable[[], _T]) -> _T:
     """Run ``action()`` on rank 0; every rank returns its result or raises the same hyperfem error."""
     comm = MPI.COMM_WORLD
     result, failure = None, None
@@ -330,7 +335,7 @@ def _on_rank0(action):
     return comm.bcast(result, root=0)
 
 
-def _run(args) -> dict | None:
+def _run(args: argparse.Namespace) -> dict[str, Any] | None:
     from hyperfem.app.build import build
     from hyperfem.app.casefile import load_case
     from hyperfem.app.plan import checkpoint_folder
@@ -376,11 +381,11 @@ def _refuse_previous_run(folder: Path, *, overwrite: bool) -> None:
     _say(f"overwriting the previous run in {folder} ({names})")
 
 
-def _vector(values) -> str:
+def _vector(values: Sequence[float]) -> str:
     return "(" + ", ".join(f"{v:.6g}" for v in values) + ")"
 
 
-def _check(args) -> None:
+def _check(args: argparse.Namespace) -> None:
     from hyperfem.app.build import build_domain, check_mesh
     from hyperfem.app.casefile import load_case
     from hyperfem.app.plan import plan
@@ -395,13 +400,13 @@ def _check(args) -> None:
     )
 
 
-def _schema(args) -> None:
+def _schema(args: argparse.Namespace) -> None:
     from hyperfem.app.reference import dumps, json_schema, reference
 
     _say(dumps(json_schema()) if getattr(args, "json", False) else reference().rstrip("\n"))
 
 
-def _demo(args) -> None:
+def _demo(args: argparse.Namespace) -> None:
     names = _demos()
     if args.name is None:
         _say(f"demos: {', '.join(names)}\nrun one with: hyperfem demo NAME [ARGS ...] (NAME --help: its options)")
@@ -423,7 +428,7 @@ def _demo(args) -> None:
         sys.argv = saved
 
 
-def _mesh(args) -> None:
+def _mesh(args: argparse.Namespace) -> None:
     from hyperfem.mesh.convert import describe_msh
 
     if args.generator is None:
@@ -452,7 +457,7 @@ def _mesh(args) -> None:
     _say(_on_rank0(write))
 
 
-def _plot(args) -> None:
+def _plot(args: argparse.Namespace) -> None:
     from hyperfem.errors import OutputError
     from hyperfem.simulation.plots import plot_run
 
@@ -465,7 +470,7 @@ def _plot(args) -> None:
         _say(f"wrote {path}")
 
 
-def _quality(args) -> None:
+def _quality(args: argparse.Namespace) -> None:
     from hyperfem.app.report import quality_table, warn
     from hyperfem.mesh.io import read_mesh
     from hyperfem.mesh.orientation import domain_orientation
@@ -497,7 +502,7 @@ def _quality(args) -> None:
         _say(f"wrote {args.png}")
 
 
-def _render_picture(args) -> None:
+def _render_picture(args: argparse.Namespace) -> None:
     import dataclasses
 
     from hyperfem.app.build import build
@@ -535,11 +540,11 @@ def _render_picture(args) -> None:
     _say(f"wrote {target}: {case.name} at t = {float(meta['time']):g}, step {meta['step']} ({state}, {meta['path']})")
 
 
-def _convert(args) -> None:
+def _convert(args: argparse.Namespace) -> None:
     from hyperfem.mesh.convert import convert
     from hyperfem.app.report import warn
 
-    def work():
+    def work() -> tuple[str, list[str], list[str]]:
         report = convert(args.input, args.output, reorient=args.reorient, tags=args.tags, names=args.names)
         return report.summary(), report.notes, report.warnings
 
@@ -564,7 +569,7 @@ COMMANDS = {
 }
 
 
-def dispatch(argv: list[str] | None = None):
+def dispatch(argv: list[str] | None = None) -> dict[str, Any] | None:
     """Parse ``argv`` and run the command (errors propagate; :func:`main` turns them into one line)."""
     parser = make_parser()
     args = parser.parse_args(argv)
@@ -577,7 +582,14 @@ def dispatch(argv: list[str] | None = None):
     return COMMANDS[args.command](args)
 
 
-def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+def _one_line_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
     if MPI.COMM_WORLD.rank == 0:
         print(f"hyperfem: warning: {message}", file=sys.stderr, flush=True)
 

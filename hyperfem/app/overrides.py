@@ -34,7 +34,7 @@ def _parse_path(text: str) -> list[str | int]:
     return parts
 
 
-def _parse_value(text: str, source) -> object:
+def _parse_value(text: str, source: str | Path | None) -> object:
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:

@@ -24,7 +24,7 @@ from pathlib import Path
 from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
-from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, LoadSpec, MaterialSpec, Profile
+from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, LoadSpec, MaterialSpec, Profile, RenderSpec
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -512,7 +512,7 @@ def _outputs(case: Case, materials: _Materials) -> Statement:
     return Statement("output", "outputs", items=tuple(items))
 
 
-def _render(case: Case, materials: _Materials, render) -> Call:
+def _render(case: Case, materials: _Materials, render: RenderSpec) -> Call:
     """``Render(out / 'name.png', scalars=..., <what the field needs>, <the other options as given>)``."""
     options = dict(render.options)
     kw: dict[str, object] = {}

@@ -6,6 +6,7 @@ Everything here formats; printing happens on rank 0 (:func:`say`, :func:`warn`).
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 
 from mpi4py import MPI
 
@@ -14,19 +15,19 @@ from hyperfem.mesh.quality import MEASURES, MeshQuality
 __all__ = ["progress_line", "quality_table", "say", "warn"]
 
 
-def say(text: str, comm=MPI.COMM_WORLD) -> None:
+def say(text: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """Print ``text`` on rank 0 (stdout, flushed)."""
     if comm.rank == 0:
         print(text, flush=True)
 
 
-def warn(text: str, comm=MPI.COMM_WORLD) -> None:
+def warn(text: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """Print ``hyperfem: warning: text`` on rank 0 (stderr)."""
     if comm.rank == 0:
         print(f"hyperfem: warning: {text}", file=sys.stderr, flush=True)
 
 
-def _vector(value) -> str:
+def _vector(value: Sequence[float]) -> str:
     return "(" + ", ".join(f"{v:.4g}" for v in value) + ")"
 
 
