@@ -17,7 +17,7 @@ the summary:
 :mod:`hyperfem.simulation.fields`. The reaction forces of every
 Dirichlet boundary, with moments, are :class:`~hyperfem.simulation.reactions.Reactions`. All of them work on the
 displacement and the three-field problem (through
-:class:`~hyperfem.simulation.Fields`) and, for a dynamic run, on its base problem.
+:class:`~hyperfem.simulation.StateFunctions`) and, for a dynamic run, on its base problem.
 """
 
 from __future__ import annotations
