@@ -41,7 +41,8 @@ from dolfinx import fem
 
 from hyperfem.dynamics.incremental import IncrementalProblem
 from hyperfem.solver.stepping import StepRecord
-from hyperfem.io.probes import PointProbe, QuadratureMinimum
+from hyperfem.io.probes import PointProbe
+from hyperfem.problem.inversion import QuadratureMinimum
 
 __all__ = ["Diagnostics"]
 

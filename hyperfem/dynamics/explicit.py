@@ -77,7 +77,7 @@ from hyperfem.dynamics.incremental import DisplacementBlock, DynamicState
 from hyperfem.dynamics.mass import MassDensity, lumped_mass
 from hyperfem.dynamics.stability import DEFAULT_SAFETY, StableStep, stable_time_step
 from hyperfem.errors import ParameterError, SolverError
-from hyperfem.io.probes import QuadratureMinimum
+from hyperfem.problem.inversion import QuadratureMinimum
 from hyperfem.materials.parameters import LameParameters
 from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.linear import LinearSolver, describe

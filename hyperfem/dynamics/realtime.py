@@ -470,7 +470,7 @@ class RealtimeStepper:
         self._set_dt(self.dt)
         self._min_J = None
         if monitor_jacobian:
-            from hyperfem.io.probes import QuadratureMinimum
+            from hyperfem.problem.inversion import QuadratureMinimum
 
             self._min_J = QuadratureMinimum(problem.domain.mesh, problem.volume_jacobian(), problem.quadrature_points())
 

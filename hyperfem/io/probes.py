@@ -15,7 +15,6 @@ from numpy.typing import ArrayLike
 from mpi4py import MPI
 
 from hyperfem.errors import ParameterError
-from hyperfem.problem.inversion import QuadratureMinimum  # noqa: F401  (transitional: dynamics/ imports it from here)
 
 __all__ = ["PointProbe"]
 
