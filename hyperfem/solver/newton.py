@@ -25,6 +25,10 @@ one wires them to the SNES and runs the solve):
 * a convergence test that ends a solve at the floating-point floor
   (``SolveRecord.reason_name == "CONVERGED_ROUNDOFF"``), with a warning when
   the tolerance asked for less (:mod:`~hyperfem.solver.roundoff`);
+* external energies (:mod:`~hyperfem.solver.external`, e.g. a contact
+  barrier, :mod:`hyperfem.contact`): added to the objective, the residual and
+  the tangent (Dirichlet rows kept exact), with their step filters and a
+  start check (a state they refuse is not solved from);
 * a boundary-increment predictor: when the prescribed boundary values moved
   since the last solve, one linear solve with the tangent at the old state
   carries the increment into the interior (:mod:`~hyperfem.solver.predictor`);
@@ -61,6 +65,7 @@ from hyperfem.errors import ConvergenceError, ParameterError, SolverError
 from hyperfem.problem.inversion import QuadratureMinimum
 from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
+from hyperfem.solver.external import ExternalEnergy, ExternalTerms
 from hyperfem.solver.filters import (
     DEFAULT_MIN_JACOBIAN,
     STEP_FILTERS,
@@ -245,6 +250,13 @@ class NewtonSolver:
         step_filters: Further step filters
             (:class:`~hyperfem.solver.filters.NewtonStepFilter`), added in
             order with :meth:`add_step_filter`.
+        external_energies: Energies of the unknown's nodal values added to
+            :math:`\\Pi` (:class:`~hyperfem.solver.external.ExternalEnergy`, e.g.
+            ``hf.contact.PlaneContact(...).bind(problem)``): in the objective,
+            the residual and the tangent; their step filters are added after
+            ``step_filters``; :meth:`solve` moves them to the problem's time.
+            A motion that only an obstacle holds (a block resting on a plane
+            under a dead load) needs ``check_rigid_motion=False``.
 
     Attributes:
         step_filter: The inversion guard: ``"exact"``, ``"bisection"`` or ``"none"``.
@@ -256,8 +268,9 @@ class NewtonSolver:
             conditions that leave rigid-body motion unconstrained, an invalid
             ``min_jacobian``, ``step_filter`` or ``volume_fraction``,
             ``step_filter="exact"`` on a problem whose unknown is not a P1
-            displacement on straight simplices, or an entry of
-            ``step_filters`` that is not a step filter.
+            displacement on straight simplices, an entry of
+            ``step_filters`` that is not a step filter, or one of
+            ``external_energies`` that is not an external energy.
     """
 
     def __init__(
@@ -280,12 +293,14 @@ class NewtonSolver:
         form_compiler_options: dict[str, Any] | None = None,
         jit_options: dict[str, Any] | None = None,
         step_filters: Iterable[NewtonStepFilter] = (),
+        external_energies: Iterable[ExternalEnergy] = (),
     ) -> None:
         self.problem = problem
         self.comm = problem.domain.comm
         self.prefix = solver_prefix(prefix)
         if check_rigid_motion and not problem.rigid_motion_resisted:
             _check_rigid_motion(problem)
+        self.external = ExternalTerms(problem, external_energies)
         self.linear_solver = choose_linear_solver(problem) if linear_solver is None else linear_solver
         self.options = merge_options(problem.conservative, self.linear_solver.options, petsc_options)
         compiler = {"form_compiler_options": form_compiler_options, "jit_options": jit_options}
@@ -308,7 +323,7 @@ class NewtonSolver:
         self.min_jacobian = resolve_min_jacobian(min_jacobian, problem)
         self._roundoff = RoundoffStop(self.snes, problem, self._nlp.x, self._nlp.b, roundoff_factor)
         self._min_J = QuadratureMinimum(problem.domain.mesh, problem.volume_jacobian(), problem.quadrature_points())
-        self._install_step_filters(step_filter, volume_fraction, step_filters)
+        self._install_step_filters(step_filter, volume_fraction, [*step_filters, *self.external.step_filters])
         # Every Newton direction goes through the pre-check: its Dirichlet
         # components are set exactly (see _precheck), then the step filters.
         self.snes.setLineSearchPreCheck(lambda x, y: me()._guarded(me()._precheck, x, y))
@@ -354,13 +369,13 @@ class NewtonSolver:
     def _wire_assembly(self, me: _SolverRef) -> None:
         """The monitor, the state hooks before each assembly, and the shifted preconditioning matrix."""
         self.snes.setMonitor(lambda _snes, _it, norm: me()._norms.append(float(norm)))
-        if self.state_hooks:
+        if self.state_hooks or self.external:
             self._hook_assembly(me)
         if self._preconditioner is not None:
             self._shift_jacobian(me)
 
     def _hook_assembly(self, me: _SolverRef) -> None:
-        """Run the state hooks before DOLFINx assembles the residual and the tangent."""
+        """Run the state hooks before DOLFINx assembles the residual and the tangent; add the external energies."""
         snes = self.snes
         b, (residual, _, residual_kw) = cast(tuple[PETSc.Vec, _Callback], snes.getFunction())  # petsc4py stubs
         _, _, (jacobian, _, jacobian_kw) = cast(tuple[PETSc.Mat, PETSc.Mat, _Callback], snes.getJacobian())
@@ -368,10 +383,14 @@ class NewtonSolver:
         def hooked_residual(snes_: PETSc.SNES, x: PETSc.Vec, b_: PETSc.Vec) -> None:
             me()._guarded(me()._set_state, x)
             residual(snes_, x, b_, **residual_kw)
+            if me().external:
+                me()._guarded(me().external.add_residual, b_)
 
         def hooked_jacobian(snes_: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
             me()._guarded(me()._set_state, x)
             jacobian(snes_, x, A, P, **jacobian_kw)
+            if me().external:
+                me()._guarded(me().external.add_tangent, A)
 
         snes.setFunction(hooked_residual, b)
         snes.setJacobian(hooked_jacobian, self._nlp.A, self._nlp.P_mat)
@@ -467,6 +486,8 @@ class NewtonSolver:
         a = fem.assemble_scalar(self._energy_forms[0])
         b = fem.assemble_scalar(self._energy_forms[1])
         a, b = self.comm.allreduce(np.array([a, b], dtype=float), op=MPI.SUM)
+        if self.external:
+            a += self.external.energy()
         return float(a), float(b)
 
     def _precheck(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
@@ -520,9 +541,19 @@ class NewtonSolver:
         """Round-off estimate of the residual norm (:meth:`~hyperfem.solver.roundoff.RoundoffStop.floor`)."""
         return self._roundoff.floor()
 
+    def _start_refusal(self) -> str:
+        """Why the current state cannot be solved from, ``""`` if it can (collective).
+
+        :math:`J \\le J_\\text{min}` somewhere, or an external energy refuses it
+        (a contact node on or behind its obstacle).
+        """
+        if self.min_jacobian is not None and not self.min_J() > self.min_jacobian:
+            return f"start state has J <= {self.min_jacobian:g}"
+        return self.external.refusal() if self.external else ""
+
     def _admissible(self) -> bool:
-        """Whether the current state has :math:`J > J_\\text{min}` everywhere (always, without a guard)."""
-        return self.min_jacobian is None or self.min_J() > self.min_jacobian
+        """Whether the current state can be solved from (:meth:`_start_refusal`; always, without guards)."""
+        return not self._start_refusal()
 
     @property
     def roundoff_factor(self) -> float:
@@ -570,11 +601,9 @@ class NewtonSolver:
         start = time.perf_counter()
         predicted = self.predictor and self._boundary_predictor.moved() and self._predict()
         self._apply_dirichlet()
-        solved = self._admissible()
-        if solved:
-            reason, message = self._run_snes(), ""
-        else:
-            reason, message = _DOMAIN, f"start state has J <= {self.min_jacobian:g}"
+        refusal = self._start_refusal()
+        solved = not refusal
+        reason, message = (self._run_snes(), "") if solved else (_DOMAIN, refusal)
         self.problem.u.x.scatter_forward()
         # A solve refused at its start ran no SNES: SNES still holds the previous solve's counts.
         iterations = int(self.snes.getIterationNumber()) if solved else 0
@@ -605,12 +634,17 @@ class NewtonSolver:
         if self._objective is not None:
             self._objective.reset()
         self.step_filters.min_step_fraction = 1.0
+        self.external.update(self.problem.time)
         return self.inversion_cutbacks, self.roundoff_accepts, self.filtered_steps, pc_setup_seconds()
 
     def _predict(self) -> bool:
         """Run the boundary-increment predictor; whether it moved the state."""
         return self._boundary_predictor.lift(
-            self.snes.getKSP(), refresh=self.refresh, preconditioner=self._preconditioner, admissible=self._admissible
+            self.snes.getKSP(),
+            refresh=self.refresh,
+            preconditioner=self._preconditioner,
+            admissible=self._admissible,
+            tangent_terms=self.external.add_tangent if self.external else None,
         )
 
     def _apply_dirichlet(self) -> None:

@@ -58,6 +58,7 @@ class BoundaryPredictor:
         refresh: Callable[[], None],
         preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None,
         admissible: Callable[[], bool],
+        tangent_terms: Callable[[PETSc.Mat], None] | None = None,
     ) -> bool:
         r"""Move the state by the tangent response to the boundary increment.
 
@@ -73,6 +74,8 @@ class BoundaryPredictor:
             preconditioner: ``P(A)``, the preconditioning matrix of a tangent
                 ``A`` (``None``: ``A`` itself).
             admissible: Whether the current state of the unknown is admissible (collective).
+            tangent_terms: Adds what the tangent form lacks to the assembled
+                tangent (the solver's external energies, e.g. a contact barrier).
 
         Returns:
             Whether a step was applied.
@@ -84,14 +87,19 @@ class BoundaryPredictor:
         refresh()
         du = x.duplicate()
         try:
-            if not self._solve(ksp, x, du, preconditioner):
+            if not self._solve(ksp, x, du, preconditioner, tangent_terms):
                 return False
             return self._apply(x, du, admissible)
         finally:
             du.destroy()
 
     def _solve(
-        self, ksp: PETSc.KSP, x: PETSc.Vec, du: PETSc.Vec, preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None
+        self,
+        ksp: PETSc.KSP,
+        x: PETSc.Vec,
+        du: PETSc.Vec,
+        preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None,
+        tangent_terms: Callable[[PETSc.Mat], None] | None,
     ) -> bool:
         """The lifted tangent solve for ``du``; whether it converged to a finite increment."""
         nlp = self._nlp
@@ -100,6 +108,8 @@ class BoundaryPredictor:
         A.zeroEntries()
         fpetsc.assemble_matrix(A, nlp.J, bcs=bcs)  # type: ignore[arg-type, misc]  # dolfinx: singledispatch (Mat, Form)
         A.assemble()
+        if tangent_terms is not None:
+            tangent_terms(A)
         P = None if preconditioner is None else preconditioner(A)
         b = self._rhs
         with b.localForm() as loc:
