@@ -1,0 +1,421 @@
+r"""Contact with a rigid plane (issue 19, first slice): the IPC barrier in the Newton system.
+
+The reference case is a unit cube pressed on a frictionless plane: rollers on
+:math:`x = 0` and :math:`y = 0`, the top face pushed down by :math:`\delta`, the
+bottom face resting on the plane :math:`z = -\hat d/2` (the body starts at half
+the barrier width from it). The exact state is homogeneous uniaxial
+compression with free lateral faces: stretch :math:`\lambda` along :math:`z`,
+lateral stretch :math:`\lambda_t` from :math:`P_{xx} = 0`, and the force on the
+plane is :math:`|P_{zz}|` times the reference area 1, with the Neo-Hookean
+
+.. math::
+    P = \mu F + (\lambda_L \ln J - \mu) F^{-T}, \quad F = \mathrm{diag}(\lambda_t, \lambda_t, \lambda), \quad
+    J = \lambda\lambda_t^2, \qquad
+    P_{xx} = \mu\lambda_t + \frac{\lambda_L \ln J - \mu}{\lambda_t} = 0, \qquad
+    P_{zz} = \mu\lambda + \frac{\lambda_L \ln J - \mu}{\lambda}.
+
+:math:`\lambda` is the current height: the top at :math:`1 - \delta`, minus the
+mean height of the bottom nodes (which rest within :math:`\hat d` of the
+plane). The nodal barrier gives every bottom node a force that depends only on
+its distance, which is not the consistent load of a uniform pressure, so the
+computed state is homogeneous up to :math:`O(\hat d)`: 0.007 % for P1 at
+:math:`\hat d = 10^{-3}`, 0.13 % for P2 (whose vertices carry no share of a
+uniform pressure) at :math:`10^{-3}`, 0.014 % at :math:`10^{-4}`.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+ipctk = pytest.importorskip("ipctk")
+
+import hyperfem as hf  # noqa: E402
+from dolfinx import mesh as dmesh  # noqa: E402
+from hyperfem.contact import PlaneContact, barrier, barrier_derivatives, plane_step_fraction  # noqa: E402
+from hyperfem.errors import ParameterError, UnknownGroupError  # noqa: E402
+from hyperfem.loading import Ramp  # noqa: E402
+from hyperfem.simulation import Recorder, Simulation  # noqa: E402
+from hyperfem.simulation.measures import Reaction  # noqa: E402
+from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
+from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
+
+PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
+DHAT = 1e-3
+TIGHT = {"snes_rtol": 1e-12, "snes_atol": 1e-12}
+
+
+def _cube(comm, n: int):
+    mesh = dmesh.create_unit_cube(comm, n, n, n)
+    groups = {
+        "bottom": lambda x: np.isclose(x[2], 0.0),
+        "top": lambda x: np.isclose(x[2], 1.0),
+        "x0": lambda x: np.isclose(x[0], 0.0),
+        "y0": lambda x: np.isclose(x[1], 0.0),
+    }
+    return hf.Domain.from_locators(mesh, groups, source=f"cube({n})")
+
+
+def _supports(delta: float, top_profile=None) -> list:
+    """Rollers on x0 and y0, the top pushed down by ``delta`` (ramped with t, or with ``top_profile``)."""
+    top = hf.PrescribedDisplacement("top", [-delta], components=[2])
+    if top_profile is not None:
+        top = hf.PrescribedDisplacement("top", [-delta], components=[2], profile=top_profile)
+    return [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        top,
+    ]
+
+
+def _block(comm=MPI.COMM_WORLD, n=3, degree=1, delta=0.2, top_profile=None):
+    """The pressed Neo-Hookean block (:func:`_supports`)."""
+    return hf.HyperelasticProblem(
+        _cube(comm, n), lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=_supports(delta, top_profile), degree=degree
+    )
+
+
+def _plane(dhat=DHAT, **kwargs) -> PlaneContact:
+    return PlaneContact("bottom", point=(0.0, 0.0, -dhat / 2), normal=(0.0, 0.0, 1.0), dhat=dhat, **kwargs)
+
+
+def uniaxial_stress(stretch: float) -> float:
+    r""":math:`P_{zz}` of Neo-Hookean uniaxial stress at stretch ``stretch`` (module docstring; scalar Newton)."""
+    mu, lam = PARAMS.mu, PARAMS.lmbda
+    lt = 1.0
+    for _ in range(50):
+        J = stretch * lt * lt
+        g = mu * lt + (lam * np.log(J) - mu) / lt
+        dg = mu + 2.0 * lam / lt**2 - (lam * np.log(J) - mu) / lt**2
+        lt -= g / dg
+        if abs(g) < 1e-15:
+            break
+    J = stretch * lt * lt
+    return mu * stretch + (lam * np.log(J) - mu) / stretch
+
+
+def _height(problem, contact, delta: float) -> float:
+    """Top at ``1 - delta`` minus the mean height of the contact nodes."""
+    z = contact.nodes.positions(problem.u.x.array)[:, 2]
+    total = problem.domain.comm.allreduce(float(z.sum()), op=MPI.SUM)
+    return 1.0 - delta - total / contact.nodes.total
+
+
+def _watch(solver, contact) -> list[float]:
+    """The smallest distance of every accepted Newton iterate (a SNES monitor)."""
+    seen: list[float] = []
+    solver.snes.setMonitor(lambda snes, it, norm: seen.append(contact.min_distance(snes.getSolution())))
+    return seen
+
+
+# -- the barrier and the collision filter ---------------------------------------------------------------------------
+
+
+def test_barrier_is_the_ipc_log_barrier():
+    """b = -(d - dhat)^2 ln(d/dhat) on (0, dhat), 0 beyond, inf at d <= 0; b', b'' against finite differences."""
+    d = np.array([-1e-4, 0.0, 1e-5, 3e-4, 9.99e-4, 1e-3, 2e-3])
+    b = barrier(d, DHAT)
+    inside = slice(2, 5)
+    assert np.all(np.isinf(b[:2])) and np.all(b[5:] == 0.0)
+    assert b[inside] == pytest.approx(-((d[inside] - DHAT) ** 2) * np.log(d[inside] / DHAT), rel=1e-14)
+    first, second = barrier_derivatives(d, DHAT)
+    assert np.all(np.isnan(first[:2])) and np.all(first[5:] == 0.0) and np.all(second[5:] == 0.0)
+    h = 1e-9
+    x = d[inside]
+    assert first[inside] == pytest.approx((barrier(x + h, DHAT) - barrier(x - h, DHAT)) / (2 * h), rel=1e-5)
+    f1p, _ = barrier_derivatives(x + h, DHAT)
+    f1m, _ = barrier_derivatives(x - h, DHAT)
+    assert second[inside] == pytest.approx((f1p - f1m) / (2 * h), rel=1e-5)
+    assert np.all(first[inside] < 0.0) and np.all(second[inside] > 0.0)  # decreasing, convex: PSD blocks
+
+
+def test_plane_step_fraction_is_ipctk_point_plane_ccd():
+    """The analytic filter equals ipctk's point_static_plane_ccd times its conservative rescaling."""
+    rng = np.random.default_rng(3)
+    normal = np.array([0.0, 0.6, 0.8])
+    origin = np.array([0.0, 0.0, 0.1])
+    for _ in range(20):
+        p0 = rng.uniform(0.2, 1.0, 3)
+        p1 = p0 + rng.uniform(-2.0, 0.5, 3)
+        d0, approach = (p0 - origin) @ normal, -(p1 - p0) @ normal
+        hit, toi = ipctk.point_static_plane_ccd(p0, p1, origin, normal, 0.9)
+        expected = toi if hit else 1.0
+        assert plane_step_fraction(np.array([d0]), np.array([approach]), 0.9) == pytest.approx(expected, rel=1e-12)
+
+
+def test_barrier_term_taylor():
+    """Gradient and Hessian of kappa*B against finite differences of its energy (errors O(eps^2), O(eps^3))."""
+    problem = _block(n=2)
+    contact = _plane(dhat=1e-2, stiffness=0.5).bind(problem)
+    comm = problem.domain.comm
+    rng = np.random.default_rng(comm.rank)
+    u = 1e-3 * rng.standard_normal(problem.u.x.array.size)
+    du = 1e-3 * rng.standard_normal(u.size)
+
+    def total(values):
+        return comm.allreduce(contact.energy(values), op=MPI.SUM)
+
+    def dot(a, b):
+        return comm.allreduce(float(a @ b), op=MPI.SUM)
+
+    dofs, g = contact.gradient(u)
+    hdofs, blocks = contact.hessian(u)
+    assert comm.allreduce(len(dofs), op=MPI.SUM) == contact.nodes.total  # every node within dhat
+    G = np.zeros(u.size)
+    np.add.at(G, dofs.ravel(), g.ravel())
+    Hdu = np.zeros(u.size)
+    np.add.at(Hdu, hdofs.ravel(), np.einsum("mij,mj->mi", blocks, du[hdofs]).ravel())
+    E0, first, second = total(u), [], []
+    for eps in (1e-1, 1e-2, 1e-3):
+        E1 = total(u + eps * du)
+        first.append(abs(E1 - E0 - eps * dot(G, du)))
+        second.append(abs(E1 - E0 - eps * dot(G, du) - 0.5 * eps**2 * dot(du, Hdu)))
+    assert np.array(first[1:]) / np.array(first[:-1]) == pytest.approx([1e-2, 1e-2], rel=0.05)
+    assert np.array(second[1:]) / np.array(second[:-1]) == pytest.approx([1e-3, 1e-3], rel=0.1)
+
+
+def test_newton_system_taylor_and_exact_dirichlet_rows():
+    """The solver's objective, residual and tangent include the barrier consistently; Dirichlet rows stay identity.
+
+    A tilted plane couples the components of every bottom node (its block is
+    kappa b'' n n^T), so the roller rows of the nodes on x0 and y0 would pick up
+    entries if the blocks were added without zeroing them.
+    """
+    problem = _block(n=2, delta=0.0)
+    tilted = PlaneContact("bottom", point=(0.0, 0.0, -5e-3), normal=(0.0, 0.1, 1.0), dhat=0.2, stiffness=0.5)
+    contact = tilted.bind(problem)
+    solver = hf.NewtonSolver(problem, external_energies=[contact])
+    x = problem.u.x.petsc_vec.copy()
+    constrained = np.zeros(x.getLocalSize())
+    for bc in problem.bcs:
+        dofs = bc.dof_indices()[0]
+        constrained[dofs[dofs < constrained.size]] = 1.0
+    rng = np.random.default_rng(problem.domain.comm.rank)
+    du = x.duplicate()
+    du.array[:] = 1e-3 * rng.standard_normal(du.getLocalSize()) * (1.0 - constrained)
+    r0, r1, Jdu = x.duplicate(), x.duplicate(), x.duplicate()
+    A = solver.snes.getJacobian()[0]
+    solver.snes.computeFunction(x, r0)
+    solver.snes.computeJacobian(x, A)
+    A.mult(du, Jdu)
+    solver._set_state(x)
+    E0 = solver.energy()
+    errors, tangent = [], []
+    for eps in (1e-1, 1e-2):
+        xe = x.copy()
+        xe.axpy(eps, du)
+        solver._set_state(xe)
+        errors.append(abs(solver.energy() - E0 - eps * r0.dot(du)))
+        solver.snes.computeFunction(xe, r1)
+        r1.axpy(-1.0, r0)
+        r1.axpy(-eps, Jdu)
+        tangent.append(r1.norm())
+    assert errors[1] / errors[0] < 0.02 and tangent[1] / tangent[0] < 0.02
+    e = x.duplicate()
+    e.array[:] = constrained
+    Ae = x.duplicate()
+    A.mult(e, Ae)
+    assert np.abs(Ae.array - constrained).max() == 0.0  # identity rows, zero columns at Dirichlet dofs
+    assert contact.active_count() == contact.nodes.total
+
+
+# -- the pressed block ----------------------------------------------------------------------------------------------
+
+
+def _pressed(comm=MPI.COMM_WORLD, n=3, degree=1, delta=0.2, dhat=DHAT, policy=None):
+    problem = _block(comm, n, degree, delta)
+    contact = _plane(dhat=dhat).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    outputs = [Recorder(contact), Reaction("top")]
+    summary = Simulation(problem, solver, policy or hf.StepPolicy(increment=0.25), outputs).run()
+    return problem, contact, summary, iterates
+
+
+@pytest.mark.parametrize("degree, n, dhat", [(1, 3, DHAT), (2, 2, 1e-4)])
+def test_block_on_plane_closed_form_and_reaction(degree, n, dhat):
+    """Contact force = uniaxial Neo-Hookean stress x area (0.1 %) = -reaction of the pushed face; never penetrating."""
+    delta = 0.2
+    problem, contact, summary, iterates = _pressed(n=n, degree=degree, delta=delta, dhat=dhat)
+    force = contact.force()
+    exact = -uniaxial_stress(_height(problem, contact, delta))
+    assert force[2] == pytest.approx(exact, rel=1e-3)
+    assert np.abs(force[:2]).max() == 0.0  # frictionless plane z = const: a normal force only
+    rows = summary["rows"]
+    assert [row["contact_active"] for row in rows[1:]] == [contact.nodes.total] * (len(rows) - 1)
+    for row in rows[1:]:  # at every step: the plane's force balances the reaction of the pushed face
+        assert row["contact_force"][2] == pytest.approx(-row["reaction_top"][2], rel=1e-9)
+        assert 0.0 < row["contact_min_distance"] < dhat
+    assert iterates and min(iterates) > 0.0
+
+
+def test_block_pushed_half_its_height_in_one_step():
+    """The hard case: 50 % compression asked in one step; cutbacks and the filters keep every iterate feasible."""
+    delta = 0.5
+    problem, contact, summary, iterates = _pressed(n=4, delta=delta, policy=hf.StepPolicy(increment=1.0))
+    assert summary["completed"] and summary["rejected"] >= 1
+    assert min(iterates) > 0.0 and all(row["contact_min_distance"] > 0.0 for row in summary["rows"])
+    assert contact.force()[2] == pytest.approx(-uniaxial_stress(_height(problem, contact, delta)), rel=1e-3)
+
+
+def _force_and_norm(comm) -> tuple[float, float]:
+    problem, contact, _, _ = _pressed(comm, n=3, delta=0.3)
+    return float(contact.force()[2]), float(problem.u.x.petsc_vec.norm())
+
+
+def test_one_rank_equals_two_ranks():
+    """Contact force and displacement norm on 2 ranks equal those of 1 rank to 1e-10."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    pc_setup_seconds()  # starts PETSc's log, a collective call: on every rank before the 1-rank solve on rank 0
+    one = _force_and_norm(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    two = _force_and_norm(comm)
+    assert two == pytest.approx(one, rel=1e-10)
+
+
+def test_three_field_problem_on_the_plane():
+    """The (u, p, theta) problem: the contact nodes are its P2 displacement nodes; force balances the reaction."""
+    from hyperfem.kinematics import isochoric_invariants
+    from hyperfem.problem.mixed import SplitEnergy, solid_problem
+
+    material = SplitEnergy(lambda F: 0.5 * PARAMS.mu * (isochoric_invariants(F)[0] - 3.0), 50.0 * PARAMS.mu)
+    problem = solid_problem(_cube(MPI.COMM_WORLD, 2), material, formulation="mixed", bcs=_supports(0.2))
+    contact = _plane().bind(problem)
+    assert contact.nodes.total == 25  # P2 nodes of the 2 x 2 bottom face
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    reaction = ReactionForce(problem, "top")()
+    assert contact.force()[2] == pytest.approx(-reaction[2], rel=1e-8) and contact.force()[2] > 0.0
+    assert min(iterates) > 0.0 and contact.active_count() == 25
+
+
+def test_moving_plane_reaches_the_fixed_plane_state():
+    """A plane that approaches from 0.2 below (prescribed translation) ends where the fixed plane is: same state."""
+    delta, far = 0.2, 0.2
+    problem = _block(n=2, delta=delta, top_profile=Ramp(t0=0.5, t1=1.0))
+    moving = PlaneContact(
+        "bottom", point=(0.0, 0.0, -far - DHAT / 2), normal=(0.0, 0.0, 1.0), dhat=DHAT,
+        motion=(0.0, 0.0, far), profile=Ramp(t1=0.5),
+    )
+    contact = moving.bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.125, max_increment=0.125))
+    assert contact.time == 1.0 and min(iterates) > 0.0
+    fixed, reference, _, _ = _pressed(n=2, delta=delta)
+    assert contact.force()[2] == pytest.approx(reference.force()[2], rel=1e-8)
+
+
+def test_plane_pushed_into_a_resting_body_is_cut_back_never_accepted():
+    """Moving the plane into a body that rests on it is refused at the start of each attempt (a later slice moves
+    obstacles inside the Newton solve): the run stops with a ConvergenceError, no state penetrates."""
+    problem = _block(n=2, delta=0.0)
+    pushing = PlaneContact(
+        "bottom", point=(0.0, 0.0, -DHAT / 2), normal=(0.0, 0.0, 1.0), dhat=DHAT, motion=(0.0, 0.0, 0.1)
+    )
+    contact = pushing.bind(problem)
+    solver = hf.NewtonSolver(problem, external_energies=[contact])
+    with pytest.raises(hf.ConvergenceError, match="behind the plane"):
+        hf.solve_quasistatic(solver, stepping=hf.LoadStepping(min_increment=1.0 / 64))
+    contact.update(problem.time)
+    assert contact.min_distance() > 0.0
+
+
+# -- bad input ------------------------------------------------------------------------------------------------------
+
+
+def _one_line(excinfo) -> str:
+    message = str(excinfo.value)
+    assert "\n" not in message
+    return message
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"dhat": 0.0}, "dhat must be a finite number > 0"),
+        ({"dhat": -1e-3}, "dhat must be a finite number > 0"),
+        ({"stiffness": 0.0}, "stiffness must be a finite number > 0"),
+        ({"normal": (0.0, 0.0, 0.0)}, "normal must be a non-zero vector"),
+        ({"normal": (0.0, 1.0)}, "normal has 2 components, point has 3"),
+        ({"safety": 1.0}, r"safety must be a number in \(0, 1\)"),
+        ({"point": (0.0, float("nan"), 0.0)}, "point component 1 \\(y\\) must be a finite number"),
+    ],
+)
+def test_bad_parameters_are_one_line_errors(kwargs, match):
+    args = {"point": (0.0, 0.0, -DHAT / 2), "normal": (0.0, 0.0, 1.0), "dhat": DHAT, **kwargs}
+    with pytest.raises(ParameterError, match=match) as excinfo:
+        PlaneContact("bottom", **args)
+    assert _one_line(excinfo).startswith("PlaneContact on 'bottom': ")
+
+
+def test_unknown_boundary_lists_the_groups():
+    problem = _block(n=1)
+    with pytest.raises(UnknownGroupError, match="no boundary .* named 'floor' .*available: bottom, top, x0, y0") as e:
+        PlaneContact("floor", point=(0.0, 0.0, -1.0), normal=(0.0, 0.0, 1.0)).bind(problem)
+    _one_line(e)
+
+
+def test_body_on_the_wrong_side_names_the_node_and_its_distance():
+    problem = _block(n=1)
+    where = r"starts on the wrong side .* node at \([01]\.0, [01]\.0, 0\.0\) has distance -0\.1 "
+    with pytest.raises(ParameterError, match=where) as e:
+        PlaneContact("bottom", point=(0.0, 0.0, 0.1), normal=(0.0, 0.0, 1.0)).bind(problem)
+    _one_line(e)
+    with pytest.raises(ParameterError, match="the plane has 2 components, the mesh 3"):
+        PlaneContact("bottom", point=(0.0, -1.0), normal=(0.0, 1.0)).bind(problem)
+
+
+def test_defaults_from_the_mesh_and_the_tangent():
+    """dhat = 1 % of the mean facet diameter; kappa = the mean normal tangent diagonal at the contact nodes."""
+    problem = _block(n=2)
+    contact = PlaneContact("bottom", point=(0.0, 0.0, -1e-3), normal=(0.0, 0.0, 1.0)).bind(problem)
+    assert contact.dhat == pytest.approx(0.01 * 0.5 * np.sqrt(2.0), rel=1e-12)  # facets: right triangles, legs 1/2
+    assert 0.1 * (PARAMS.lmbda + 2 * PARAMS.mu) * 0.5 < contact.stiffness < 10 * (PARAMS.lmbda + 2 * PARAMS.mu) * 0.5
+
+
+@pytest.mark.serial
+def test_hyperfem_imports_without_ipctk_and_contact_names_the_extra():
+    """``import hyperfem`` never imports ipctk; a contact without it is a one-line error naming the extra."""
+    code = (
+        "import sys; sys.modules['ipctk'] = None\n"
+        "import hyperfem as hf\n"
+        "try:\n"
+        "    hf.contact.PlaneContact('bottom', point=(0, 0, 0), normal=(0, 0, 1))\n"
+        "except hf.ParameterError as e:\n"
+        "    print(e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == (
+        "PlaneContact on 'bottom': contact needs the IPC Toolkit bindings (ipctk), which are not installed: "
+        "pip install 'hyperfem[contact]'"
+    )
+    plain = subprocess.run(
+        [sys.executable, "-c", "import sys, hyperfem; print('ipctk' in sys.modules)"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert plain.stdout.strip() == "False", plain.stderr
+
+
+@pytest.mark.serial
+def test_benchmark_smoke():
+    """``benchmarks/contact.py`` runs and prints one JSON object per size, with the closed form met."""
+    import json
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "benchmarks" / "contact.py"
+    out = subprocess.run(
+        [sys.executable, str(script), "--sizes", "3", "--repeat", "1"], capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    row = json.loads(out.stdout.strip().splitlines()[-1])
+    assert row["contact_nodes"] == 16 and row["closed_form_relative_error"] < 1e-3 and row["min_distance"] > 0.0
+    assert row["contact_s"] > 0.0 and row["iterations_contact"] >= row["iterations_roller"]
