@@ -2,6 +2,7 @@
 
 import gc
 import os
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -34,3 +35,9 @@ def _mpi_teardown():
 @pytest.fixture
 def comm():
     return MPI.COMM_WORLD
+
+
+@pytest.fixture
+def shared_tmp(tmp_path):
+    """A temporary folder that every rank agrees on (rank 0's)."""
+    return Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))

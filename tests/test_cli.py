@@ -38,12 +38,6 @@ SMALL = ["--set", f"mesh.file={MESH}", "--set", "problem.degree=1"]
 BEND_P1_H2 = [0.135077318161, -0.852854731738, 0.003404957717]  # tests/test_demos.py
 
 
-@pytest.fixture
-def shared_tmp(tmp_path):
-    """A temporary folder every rank agrees on."""
-    return Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
-
-
 def _env() -> dict:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "PMIX_", "HYDRA_", "MPIR_", "MPICH_"))}
     env["PYTHONWARNINGS"] = "ignore"

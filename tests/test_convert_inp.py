@@ -87,12 +87,6 @@ def _inp(surfaces: str, quadratic: bool = False) -> str:
     return "\n".join(lines) + "\n" + surfaces
 
 
-@pytest.fixture
-def shared_tmp(tmp_path):
-    """A temporary folder every rank agrees on."""
-    return Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
-
-
 def _measure(domain, name: str | None) -> float:
     """Area of boundary ``name`` (None: the whole exterior)."""
     import ufl

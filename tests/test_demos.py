@@ -26,12 +26,6 @@ def load_demo(name: str):
     return module
 
 
-@pytest.fixture
-def shared_tmp(tmp_path):
-    """A temporary folder that every rank agrees on."""
-    return Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
-
-
 @pytest.mark.parametrize(
     "name, expected",
     [

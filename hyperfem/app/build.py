@@ -75,6 +75,7 @@ def _groups(case: Case) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
     """``(key, name)`` of every facet group and every cell group the case names."""
     facets = [(f"{bc.key}.boundary", bc.boundary) for bc in case.bcs]
     facets += [(f"{ld.key}.boundary", ld.boundary) for ld in case.loads if ld.boundary is not None]
+    facets += [(f"{c.key}.boundary", c.boundary) for c in case.contacts]
     if case.fibres is not None and case.fibres.type == "laplace":
         facets += [("fibres.source", case.fibres.options["source"]), ("fibres.target", case.fibres.options["target"])]
     cells = [(f"{m.key}.region", m.region) for m in case.materials if m.region is not None]
@@ -124,6 +125,9 @@ def check_dimensions(case: Case, domain: Domain) -> None:
                 fail(f"{load.key}.value.matrix", f"a {len(load.value['matrix'])}x{len(load.value['matrix'])} matrix")
         elif isinstance(load.value, tuple) and len(load.value) != gdim:
             fail(f"{load.key}.value", f"{len(load.value)} components")
+    for contact in case.contacts:
+        if len(contact.point) != gdim:
+            fail(f"{contact.key}.point", f"{len(contact.point)} components")
     if case.fibres is not None and case.fibres.type == "constant" and len(case.fibres.options["direction"]) != gdim:
         fail("fibres.direction", f"{len(case.fibres.options['direction'])} components")
 

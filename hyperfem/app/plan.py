@@ -24,7 +24,8 @@ from pathlib import Path
 from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
-from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, LoadSpec, MaterialSpec, Profile, RenderSpec
+from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
+from hyperfem.contact import PlaneContact
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -240,11 +241,13 @@ def _plain(spec: object) -> object:
 
 
 def model_hash(case: Case) -> str:
-    """SHA-256 of the model sections (mesh, problem, materials, fibres, bcs, loads): what a restart must match.
+    """SHA-256 of the model sections (mesh, problem, materials, fibres, bcs, loads, contacts): a restart must match it.
 
     Stepping, solver and output may change between a run and its restart (e.g. a later ``t_end``).
     """
-    model = [case.mesh, case.problem, case.materials, case.fibres, case.bcs, case.loads]
+    model: list[object] = [case.mesh, case.problem, case.materials, case.fibres, case.bcs, case.loads]
+    if case.contacts:  # (cases without contact keep the hash they had before contact existed)
+        model.append(case.contacts)
     text = json.dumps(_plain(tuple(model)), sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -260,6 +263,7 @@ def must_hit_times(case: Case) -> list[float]:
     t_end = float(st.options["t_end"])
     profiles = [bc.profile for bc in case.bcs] + [ld.profile for ld in case.loads]
     profiles += [m.activation for m in case.materials if isinstance(m.activation, Profile)]
+    profiles += [c.profile for c in case.contacts]
     times = set(st.options.get("must_hit", ()))
     times |= {t for p in profiles if p is not None for t in p.kinks}
     times |= set(case.output.times or ())
@@ -425,13 +429,42 @@ def _problem(case: Case, materials: _Materials) -> list[Statement]:
     return [body, Statement("stepping.scheme", "problem", Call.of(dyn.IncrementalProblem, *args))]
 
 
+def _contact_names(case: Case) -> list[str]:
+    """The variables of the bound contacts: ``contact``, or ``contact_0``, ``contact_1``, ..."""
+    several = len(case.contacts) > 1
+    return [f"contact_{i}" if several else "contact" for i in range(len(case.contacts))]
+
+
+def _contact(contact: ContactSpec, name: str, several: bool) -> Call:
+    """``[[contact]] type = "plane"``: :class:`~hyperfem.contact.PlaneContact` bound to the problem."""
+    kwargs: dict[str, object] = {"point": contact.point, "normal": contact.normal}
+    for key in ("dhat", "stiffness", "motion"):
+        if getattr(contact, key) is not None:
+            kwargs[key] = getattr(contact, key)
+    profile = _profile(contact.profile)
+    if profile is not None:
+        kwargs["profile"] = profile
+    if several:
+        kwargs["name"] = name  # the output columns: contact_0_force, ...
+    return Call.of(Attr(Call.of(PlaneContact, contact.boundary, **kwargs), "bind"), Ref("problem"))
+
+
+def _contacts(case: Case) -> list[Statement]:
+    """The contacts of the body, each bound to the problem (an external energy of the solver)."""
+    names = _contact_names(case)
+    return [Statement(c.key, n, _contact(c, n, len(names) > 1)) for c, n in zip(case.contacts, names, strict=True)]
+
+
 def _solver(case: Case) -> list[Statement]:
     """``[solver]``: the :class:`~hyperfem.NewtonSolver` (and the initial acceleration of a dynamic run)."""
     st = case.stepping
     args: list[object] = [Ref("problem")]
     if case.solver.petsc_options:
         args.append(dict(case.solver.petsc_options))
-    out = [Statement("solver", "solver", Call.of(NewtonSolver, *args, **case.solver.options))]
+    kwargs: dict[str, object] = dict(case.solver.options)
+    if case.contacts:
+        kwargs["external_energies"] = [Ref(n) for n in _contact_names(case)]
+    out = [Statement("solver", "solver", Call.of(NewtonSolver, *args, **kwargs))]
     if st.dynamic and st.initial_acceleration and st.scheme != "quasi_static":
         out.append(Statement("stepping.initial_acceleration", None, Call.of(Attr(Ref("problem"),
                                                                                  "initial_acceleration"))))
@@ -491,6 +524,8 @@ def _outputs(case: Case, materials: _Materials) -> Statement:
         items.append(("output.reactions", Call.of(Reactions, o.reactions)))
     if case.dynamic:
         items.append(("stepping.type", Call.of(Recorder, Call.of(dyn.Diagnostics, Ref("problem")))))
+    for contact, variable in zip(case.contacts, _contact_names(case), strict=True):
+        items.append((contact.key, Call.of(Recorder, Ref(variable))))
     if o.csv:
         items.append(("output.csv", Call.of(CSVLog, Join(out, f"{name}.csv"))))
     if o.summary:
@@ -562,6 +597,7 @@ def plan(case: Case) -> list[Statement]:
         *materials.statements,
         *_conditions(case),
         *_problem(case, materials),
+        *_contacts(case),
         *_solver(case),
         _stepping(case),
         _outputs(case, materials),

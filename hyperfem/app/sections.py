@@ -21,6 +21,7 @@ from hyperfem.app.schema import CaseFileError, Key, check_table, check_value, de
 from hyperfem.app.spec import (
     AXES,
     BC_TYPES,
+    CONTACT_TYPES,
     FIBRE_TYPES,
     FORMULATIONS,
     LAME_LAWS,
@@ -31,6 +32,7 @@ from hyperfem.app.spec import (
     REPRESENTATIONS,
     SCHEMES,
     BCSpec,
+    ContactSpec,
     FibreSpec,
     LoadSpec,
     MaterialSpec,
@@ -51,6 +53,7 @@ __all__ = [
     "RENDER",
     "TOP",
     "check_bcs",
+    "check_contacts",
     "check_fibres",
     "check_loads",
     "check_materials",
@@ -87,6 +90,8 @@ TOP = {
     "fibres": Key("table", help="fibre directions, needed by law \"muscle\" (hf.fibres); its keys depend on type"),
     "bc": Key("tables", help="Dirichlet conditions, one [[bc]] each; its keys depend on type"),
     "load": Key("tables", help="loads, one [[load]] each; its keys depend on type"),
+    "contact": Key("tables", help="contact with obstacles, one [[contact]] each (frictionless, intersection-free: "
+                   "hyperfem.contact; needs pip install 'hyperfem[contact]'); its keys depend on type"),
     "stepping": Key("table", help="a load ramp (type = \"quasi-static\", the default) or a time integration "
                     "(type = \"dynamic\"); its keys depend on type"),
     "solver": Key("table", help="Newton's method (hf.NewtonSolver) and PETSc options"),
@@ -222,6 +227,32 @@ BCS = {
         "angle": Key("number", required=True, hint="angle in radians, scaled by the profile", example=1.57,
                      help="rotation angle in radians at f = 1"),
         "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling angle"),
+    },
+}
+
+_CONTACT_COMMON = {
+    "type": Key("string", required=True, choices=CONTACT_TYPES, example="plane",
+                help="plane: a rigid half-space (hyperfem.contact.PlaneContact)"),
+    "boundary": Key("string", required=True, example="bottom",
+                    help="facet group of the mesh whose nodes may touch the obstacle"),
+}
+CONTACTS = {
+    "plane": {
+        "point": Key("numbers", required=True, example=(0.0, 0.0, 0.0),
+                     help="a point of the plane in m (where it is at profile 0)"),
+        "normal": Key("numbers", required=True, example=(0.0, 0.0, 1.0),
+                      help="the plane's normal, pointing to the body's side (any length > 0)"),
+        "dhat": Key("number", above=0.0, example=0.001,
+                    help="barrier width in m: the distance below which contact forces act; default 1 % of the "
+                    "mean facet size of the boundary"),
+        "stiffness": Key("number", above=0.0, example=1.0e6,
+                         help="barrier stiffness kappa; default the mean normal diagonal of the elastic tangent at "
+                         "the contact nodes"),
+        "motion": Key("numbers", example=(0.0, 0.0, 0.1),
+                      help="translation of the plane in m at f = 1 (a moving tool); default none"),
+        "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
+        "friction": Key("number", minimum=0.0, maximum=0.0, default=0.0,
+                        help="Coulomb coefficient; only 0 (frictionless) in this version"),
     },
 }
 
@@ -875,6 +906,45 @@ def _render(raw: object, fibres: FibreSpec | None, materials: Sequence[MaterialS
     except ParameterError as exc:
         raise CaseFileError(f"{where}: {exc}") from exc
     return RenderSpec(tuple((k, values[k]) for k in RENDER if k in values))
+
+
+def _contact(index: int, table: Mapping) -> ContactSpec:
+    where = join("contact", index)
+    if not isinstance(table, Mapping):
+        raise CaseFileError(f"{where}: expected a table, got {describe(table)}")
+    if "type" not in table:
+        raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(CONTACT_TYPES)})")
+    kind = check_value(table["type"], _CONTACT_COMMON["type"], join(where, "type"))
+    values = check_table(table, {**_CONTACT_COMMON, **CONTACTS[kind]}, where, what=f"a contact of type {kind!r}")
+    if values.get("friction", 0.0) > 0.0:
+        raise CaseFileError(
+            f"{where}.friction: friction is not available yet (contact is frictionless in this version); "
+            "give 0 or leave it out"
+        )
+    if not any(values["normal"]):
+        raise CaseFileError(f"{where}.normal: must not be zero, got {list(values['normal'])}")
+    for name in ("normal", "motion"):
+        if name in values and len(values[name]) != len(values["point"]):
+            raise CaseFileError(
+                f"{where}.{name}: {len(values[name])} components for a point of {len(values['point'])}"
+            )
+    profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    return ContactSpec(
+        key=where,
+        type=kind,
+        boundary=values["boundary"],
+        point=values["point"],
+        normal=values["normal"],
+        dhat=values.get("dhat"),
+        stiffness=values.get("stiffness"),
+        motion=values.get("motion"),
+        profile=profile,
+    )
+
+
+def check_contacts(entries: Sequence[Mapping]) -> tuple[ContactSpec, ...]:
+    """The ``[[contact]]`` entries."""
+    return tuple(_contact(i, t) for i, t in enumerate(entries))
 
 
 def check_loads(entries: Sequence[Mapping]) -> tuple[LoadSpec, ...]:

@@ -17,6 +17,7 @@ __all__ = [
     "LAWS",
     "MIXED_LAWS",
     "BCSpec",
+    "ContactSpec",
     "Case",
     "FibreSpec",
     "LoadSpec",
@@ -54,6 +55,7 @@ SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
 FIBRE_TYPES = ("laplace", "constant", "file")
 REPRESENTATIONS = ("DG0", "P1", "quadrature")
 BC_TYPES = ("clamp", "displacement", "rotation")
+CONTACT_TYPES = ("plane",)
 LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
 PROFILE_TYPES = ("linear", "steady", "ramp", "table")
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -194,6 +196,33 @@ class LoadSpec:
 
 
 @dataclass(frozen=True)
+class ContactSpec:
+    """One ``[[contact]]``: a boundary that may touch an obstacle (frictionless, intersection-free).
+
+    Attributes:
+        key: Key path (``"contact[0]"``).
+        type: One of :data:`CONTACT_TYPES` (``"plane"``: :class:`~hyperfem.contact.PlaneContact`).
+        boundary: Facet group whose nodes may touch.
+        point: A point of the plane (at profile 0).
+        normal: The plane's normal, pointing to the body's side.
+        dhat: Barrier width, or ``None`` (the library default).
+        stiffness: Barrier stiffness, or ``None`` (the library default).
+        motion: Translation of the plane at profile 1, or ``None`` (it stays).
+        profile: Time profile of the motion, or ``None`` (linear).
+    """
+
+    key: str
+    type: str
+    boundary: str
+    point: tuple[float, ...]
+    normal: tuple[float, ...]
+    dhat: float | None = None
+    stiffness: float | None = None
+    motion: tuple[float, ...] | None = None
+    profile: Profile | None = None
+
+
+@dataclass(frozen=True)
 class SteppingSpec:
     """``[stepping]``.
 
@@ -301,7 +330,7 @@ class Case:
         source: The case file.
         name: Name of the run (output files).
         description: Free text.
-        mesh, problem, materials, fibres, bcs, loads, stepping, solver, output: The sections.
+        mesh, problem, materials, fibres, bcs, loads, stepping, solver, output, contacts: The sections.
     """
 
     source: Path
@@ -316,6 +345,7 @@ class Case:
     stepping: SteppingSpec
     solver: SolverSpec
     output: OutputSpec
+    contacts: tuple[ContactSpec, ...] = ()
 
     @property
     def dynamic(self) -> bool:

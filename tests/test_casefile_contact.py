@@ -1,0 +1,122 @@
+r"""``[[contact]]`` in case files: the block pressed on a rigid plane, run through ``hyperfem run``'s build.
+
+``cases/block_on_plane.toml``: a unit cube (``meshes/block_h0.34.msh``) of
+Neo-Hookean rubber (E = 1 MPa, :math:`\nu` = 0.3) on the frictionless plane
+:math:`z = -\hat d/2`, rollers on :math:`x = 0`, :math:`y = 0`, the top pushed
+down by 0.2 m. The exact state is uniaxial compression with free lateral
+faces (the closed form of ``tests/test_contact.py``): the force on the plane is
+:math:`|P_{zz}(\lambda)|` times 1 m², :math:`\lambda` the current height.
+Serially and under ``mpiexec -n 2``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+pytest.importorskip("ipctk")
+
+from hyperfem.app import build, check_groups, load_case, script  # noqa: E402
+from hyperfem.app.build import build_domain  # noqa: E402
+from hyperfem.app.calls import source  # noqa: E402
+from hyperfem.app.casefile import CaseFileError  # noqa: E402
+from hyperfem.contact import PlaneBarrier, PlaneContact  # noqa: E402
+
+from case_texts import ROOT  # noqa: E402
+
+CASE = ROOT / "cases" / "block_on_plane.toml"
+E, NU = 1.0e6, 0.3
+
+
+def uniaxial_stress(stretch: float) -> float:
+    r""":math:`P_{zz}` of compressible Neo-Hookean uniaxial stress (lateral faces free) at ``stretch``."""
+    mu, lam = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
+    lt = 1.0
+    for _ in range(60):  # P_xx(lt) = mu lt + (lam ln J - mu) / lt = 0
+        J = stretch * lt * lt
+        g = mu * lt + (lam * np.log(J) - mu) / lt
+        dg = mu + 2.0 * lam / lt**2 - (lam * np.log(J) - mu) / lt**2
+        lt -= g / dg
+    J = stretch * lt * lt
+    return mu * stretch + (lam * np.log(J) - mu) / stretch
+
+
+def test_contact_case_builds_the_plane_contact_and_passes_it_to_the_solver():
+    """The plan binds PlaneContact to the problem, gives it to NewtonSolver and records it; the script shows it."""
+    case = load_case(CASE)
+    (contact,) = case.contacts
+    assert (contact.type, contact.boundary, contact.point, contact.dhat) == ("plane", "bottom", (0.0, 0.0, -5e-4), 1e-3)
+    text = script(case)
+    assert "contact = PlaneContact('bottom', point=(0.0, 0.0, -0.0005), normal=(0.0, 0.0, 1.0), dhat=0.001)" \
+           ".bind(problem)" in text
+    assert "external_energies=[contact]" in text and "Recorder(contact),  # contact[0]" in text
+    compile(text, "block_on_plane.py", "exec")
+    check_groups(case, build_domain(case, MPI.COMM_WORLD))
+
+
+def test_block_on_plane_matches_the_closed_form_and_the_reaction(shared_tmp):
+    """Contact force = |P_zz(height)| to 0.1 % and = -(reaction on the top face) at every step; no penetration."""
+    built = build(load_case(CASE, ["output.fields=[]", "output.checkpoint=false"], output=shared_tmp / "out"))
+    barrier = built.variables["contact"]
+    assert isinstance(barrier, PlaneBarrier)
+    summary = built.simulation.run()
+    assert summary["completed"] and summary["steps"] >= 2
+    for row in summary["rows"][1:]:
+        assert row["contact_min_distance"] > 0.0 and row["contact_active"] > 0
+        assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-9)
+    u = built.problem.u.x.array
+    comm = built.domain.comm
+    z = barrier.nodes.positions(u)[:, 2]
+    height = 0.8 - comm.allreduce(float(z.sum()), op=MPI.SUM) / barrier.nodes.total
+    force = summary["rows"][-1]["contact_force"][2]
+    assert force == pytest.approx(-uniaxial_stress(height), rel=1e-3)
+    assert force == pytest.approx(2.393e5, rel=2e-3)  # this mesh and d-hat: 239329 N (serial and 2 ranks)
+
+
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        ({"friction": 0.3}, "contact[0].friction: friction is not available yet"),
+        ({"normal": [0.0, 0.0, 0.0]}, "contact[0].normal: must not be zero"),
+        ({"dhat": -1.0}, "contact[0].dhat: must be > 0, got -1.0"),
+        ({"motion": [0.0, 1.0]}, "contact[0].motion: 2 components for a point of 3"),
+        ({"type": "sphere"}, "contact[0].type: unknown value 'sphere'"),
+        ({"gap": 1.0}, "contact[0].gap: unknown key"),
+    ],
+)
+def test_bad_contact_entries_name_their_key(shared_tmp, change, expected):
+    import tomllib
+
+    from hyperfem.app.casefile import check_case
+
+    data = tomllib.loads(CASE.read_text())
+    data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+    data["contact"][0].update(change)
+    with pytest.raises(CaseFileError) as info:
+        check_case(data, shared_tmp / "bad.toml")
+    assert expected in str(info.value)
+
+
+def test_unknown_contact_boundary_lists_the_groups():
+    case = load_case(CASE, ["contact[0].boundary=botom"])
+    with pytest.raises(CaseFileError) as info:
+        check_groups(case, build_domain(case, MPI.COMM_WORLD))
+    message = str(info.value)
+    assert "contact[0].boundary: no boundary 'botom'" in message and "(did you mean 'bottom'?)" in message
+    assert "bottom, sides, top, x0, y0" in message
+
+
+def test_plan_node_of_the_contact_is_the_library_class():
+    """Go to definition: the plan calls PlaneContact itself, and its bind method on the problem."""
+    from hyperfem.app.plan import plan
+
+    (statement,) = [s for s in plan(load_case(CASE)) if s.target == "contact"]
+    call = statement.value
+    assert call.function.value.function is PlaneContact and call.function.name == "bind"
+    assert source(call.args[0]) == "problem"
+    assert dataclasses.is_dataclass(PlaneContact)
+    assert Path(CASE).exists()
