@@ -55,7 +55,7 @@ from mpi4py import MPI  # noqa: E402
 import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
 from hyperfem.cases.cantilever_dynamics import CASES, TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
-from hyperfem.cli import (  # noqa: E402
+from hyperfem.app.program import (  # noqa: E402
     ArgumentParser,
     nonnegative_float,
     positive_float,

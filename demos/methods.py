@@ -58,7 +58,7 @@ import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
 from hyperfem.cases.cantilever import bend_load, twist_load  # noqa: E402
 from hyperfem.cases.cantilever_dynamics import TEST_POINT, CantileverDynamics, cantilever_problem  # noqa: E402
-from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
+from hyperfem.app.program import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.mesh.beam import LENGTH  # noqa: E402

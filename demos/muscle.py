@@ -63,7 +63,7 @@ from mpi4py import MPI  # noqa: E402
 import hyperfem as hf  # noqa: E402
 from hyperfem.loading import Activation  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
-from hyperfem.cli import ArgumentParser, positive_float, positive_int  # noqa: E402
+from hyperfem.app.program import ArgumentParser, positive_float, positive_int  # noqa: E402
 from hyperfem.io.results import ensure_output_dir, note_overwrite, write_json  # noqa: E402
 from hyperfem.kinematics import deformation_gradient  # noqa: E402
 from hyperfem.cases.muscle import muscle_materials  # noqa: E402
@@ -235,6 +235,6 @@ def output_files(folder: Path) -> list[Path]:
 
 # %%
 if __name__ == "__main__":
-    from hyperfem.cli import run
+    from hyperfem.app.program import run
 
     run(main)

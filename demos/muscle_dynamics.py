@@ -68,7 +68,7 @@ import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
 from hyperfem.loading import Activation  # noqa: E402
 from hyperfem.cases.muscle import MUSCLE_DENSITY, muscle_problem  # noqa: E402
-from hyperfem.cli import ArgumentParser, positive_float, run  # noqa: E402
+from hyperfem.app.program import ArgumentParser, positive_float, run  # noqa: E402
 from hyperfem.fibres import laplace_fibres  # noqa: E402
 from hyperfem.io import ensure_output_dir, write_json  # noqa: E402
 from hyperfem.io.results import note_overwrite  # noqa: E402

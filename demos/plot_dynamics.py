@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mpi4py import MPI  # noqa: F401 - before dolfinx (imported by the plots module)
 
-from hyperfem.cli import ArgumentParser
+from hyperfem.app.program import ArgumentParser
 from hyperfem.simulation.plots import dynamics_time_series, read_rows
 
 
@@ -38,6 +38,6 @@ def main(argv=None) -> Path:
 
 # %%
 if __name__ == "__main__":
-    from hyperfem.cli import run
+    from hyperfem.app.program import run
 
     run(main)  # a missing or empty CSV: one line "hyperfem: error: ..." and exit status 1

@@ -57,7 +57,7 @@ import numpy as np  # noqa: E402
 import hyperfem as hf  # noqa: E402
 from hyperfem import dynamics as dyn  # noqa: E402
 from hyperfem.cases.cantilever_dynamics import CantileverDynamics  # noqa: E402
-from hyperfem.cli import ArgumentParser, positive_float, positive_int, run  # noqa: E402
+from hyperfem.app.program import ArgumentParser, positive_float, positive_int, run  # noqa: E402
 from hyperfem.dynamics.realtime import CONFIGS, RealtimeStepper  # noqa: E402
 from hyperfem.io import PointProbe, ensure_output_dir, write_json  # noqa: E402
 from hyperfem.mesh.beam import LENGTH  # noqa: E402

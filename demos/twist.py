@@ -34,7 +34,7 @@ from mpi4py import MPI  # noqa: E402
 
 import hyperfem as hf  # noqa: E402
 from hyperfem.cases import TEST_POINT, CantileverSpec, twist_load, convergence_note, mesh_size_of  # noqa: E402
-from hyperfem.cli import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
+from hyperfem.app.program import ArgumentParser, fraction, positive_float, positive_int, run  # noqa: E402
 from hyperfem.io import ensure_output_dir  # noqa: E402
 from hyperfem.io.results import note_overwrite  # noqa: E402
 from hyperfem.simulation import VTX, Derived, JSONSummary, Probe, Simulation, format_summary  # noqa: E402

@@ -52,7 +52,7 @@ def test_demo_generates_mesh(shared_tmp):
 
 def test_demo_cli_reports_missing_mesh(shared_tmp):
     """The CLI wrapper prints one line and exits 1 (checked in-process)."""
-    from hyperfem.cli import run
+    from hyperfem.app.program import run
 
     demo = load_demo("bend")
     with pytest.raises(SystemExit) as exc:
@@ -118,8 +118,8 @@ def test_methods_demo(shared_tmp):
 
 
 def _exit_status(name: str, argv: list[str], capsys) -> tuple[int, str]:
-    """Run a demo as ``python demos/NAME.py ARGV`` does (through hyperfem.cli.run); status and stderr."""
-    from hyperfem.cli import run
+    """Run a demo as ``python demos/NAME.py ARGV`` does (through hyperfem.app.program.run); status and stderr."""
+    from hyperfem.app.program import run
 
     module = load_demo(name)
     with pytest.raises(SystemExit) as exit_info:

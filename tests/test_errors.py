@@ -491,7 +491,7 @@ def _load_demo(name: str):
 
 @pytest.mark.parametrize("name", ["bend", "twist", "dynamics"])
 def test_demo_unwritable_output_exits_1_before_any_work(name, shared_dir, capsys):
-    from hyperfem.cli import run
+    from hyperfem.app.program import run
 
     demo = _load_demo(name)
     # The output folder is checked first: the missing mesh is never read, no mesh is generated.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import importlib.util
 import inspect
+import re
 from pathlib import Path
 
 import pytest
@@ -142,3 +143,14 @@ def test_printed_script_takes_profiles_motions_and_fields_from_loading(tmp_path)
     built = build(case)
     bc = built.variables["bcs"][1]
     assert bc.boundary == "free_end" and bc.value.angle(0.5) == pytest.approx(0.1)
+
+
+def test_readme_table_names_every_folder_of_the_package():
+    """"Where things live" lists every subpackage of hyperfem/, and no folder that does not exist."""
+    root = Path(__file__).resolve().parent.parent
+    readme = (root / "README.md").read_text()
+    folders = sorted(p.parent.name for p in (root / "hyperfem").glob("*/__init__.py"))
+    assert [f for f in folders if f"`hyperfem/{f}/`" not in readme] == []
+    named = set(re.findall(r"`hyperfem/([a-z_]+)/`", readme))
+    assert sorted(named - set(folders)) == []
+    assert not (root / "hyperfem" / "cli.py").exists()  # the command-line runner lives in app/program.py

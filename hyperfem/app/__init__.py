@@ -5,7 +5,9 @@
   nodes of :mod:`~hyperfem.app.calls`;
 * :mod:`~hyperfem.app.build` — that plan called: the objects of the run (:func:`build`);
 * :mod:`~hyperfem.app.script` — the same plan printed as a Python program (:func:`script`, ``--print-python``);
-* :mod:`~hyperfem.app.main` — the argument parser and the subcommands.
+* :mod:`~hyperfem.app.main` — the argument parser and the subcommands;
+* :mod:`~hyperfem.app.program` — running any hyperfem program (the command, the demos) from the command line:
+  one-line errors, argument types.
 
 >>> from hyperfem.app import build, load_case
 >>> run = build(load_case("cases/bend.toml", ["mesh.file=../meshes/beam_h2.msh", "problem.degree=1"]))

@@ -17,7 +17,7 @@
 Every command runs under ``mpiexec -n N`` (mesh generation and conversion on
 rank 0; the others wait for its outcome). Every hyperfem error — a bad case
 file, a missing mesh, a failed step — is one line ``hyperfem: error: ...`` on
-rank 0 and exit status 1 on every rank (:func:`hyperfem.cli.run`); bad
+rank 0 and exit status 1 on every rank (:func:`hyperfem.app.program.run`); bad
 arguments are argparse's one line and status 2. Warnings are one line
 ``hyperfem: warning: ...``.
 """
@@ -34,7 +34,7 @@ from typing import Any, TextIO, TypeVar
 
 from mpi4py import MPI
 
-from hyperfem.cli import ArgumentParser, positive_float, positive_int, run, unit_interval
+from hyperfem.app.program import ArgumentParser, positive_float, positive_int, run, unit_interval
 from hyperfem.errors import HyperfemError, ParameterError
 
 __all__ = ["DEMOS", "main", "make_parser", "dispatch"]

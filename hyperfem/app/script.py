@@ -95,7 +95,7 @@ FOOTER = """    summary = simulation.run({restart})
 
 
 if __name__ == "__main__":
-    from hyperfem.cli import run
+    from hyperfem.app.program import run
 
     run(main)
 """

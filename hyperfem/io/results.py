@@ -52,7 +52,7 @@ def abandon(writer: object) -> None:
 
     Closing or destroying an ADIOS2 engine whose transport failed throws from a
     C++ destructor, which terminates the process (SIGABRT, exit 134, after the
-    one-line error). The command line (:func:`hyperfem.cli.run`) ends such a
+    one-line error). The command line (:func:`hyperfem.app.program.run`) ends such a
     process with ``os._exit`` once its error line is out (:func:`abandoned`).
     """
     _ABANDONED.append(writer)
