@@ -30,7 +30,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-__all__ = ["Attr", "Call", "Energy", "Join", "Ref", "evaluate", "imports", "literal", "public_name", "source"]
+__all__ = ["Attr", "Call", "Energy", "Join", "Ref", "evaluate", "imports", "public_name", "source"]
 
 LINE = 100
 """Calls longer than this are broken over lines in the printed script."""
@@ -165,20 +165,13 @@ def public_name(value: Any) -> tuple[str, str]:
     raise TypeError(f"public_name: {value!r} is not reachable from its module")  # pragma: no cover
 
 
-def literal(value: object) -> str:
-    """Python source of a plain value (numbers, strings, booleans, ``None``, paths, arrays, tables)."""
+def _leaf(value: object) -> str:
+    """Python source of a plain value that holds no other: a number, string, boolean, ``None`` or path."""
     if isinstance(value, Path):
         return f"Path({str(value)!r})"
-    if isinstance(value, (list, tuple)):
-        items = ", ".join(literal(v) for v in value)
-        if isinstance(value, list):
-            return f"[{items}]"
-        return f"({items},)" if len(value) == 1 else f"({items})"
-    if isinstance(value, Mapping):
-        return "{" + ", ".join(f"{literal(k)}: {literal(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (bool, int, float, str)) or value is None:
         return repr(value)
-    raise TypeError(f"literal: unsupported value {value!r}")
+    raise TypeError(f"source: unsupported value {value!r}")
 
 
 def _indent(text: str, indent: str) -> str:
@@ -194,7 +187,10 @@ def _call_source(function: str, parts: Sequence[str]) -> str:
 
 
 def source(node: object) -> str:
-    """Python source of ``node``, functions named by :func:`public_name`; long calls one argument per line."""
+    """Python source of ``node`` or of a plain value (numbers, strings, paths, arrays, tables).
+
+    Functions are named by :func:`public_name`; calls longer than :data:`LINE` get one argument per line.
+    """
     if isinstance(node, Ref):
         return node.name
     if isinstance(node, Call):
@@ -215,8 +211,8 @@ def source(node: object) -> str:
             return f"[{items}]"
         return f"({items},)" if len(node) == 1 else f"({items})"
     if isinstance(node, Mapping):
-        return "{" + ", ".join(f"{literal(k)}: {source(v)}" for k, v in node.items()) + "}"
-    return literal(node)
+        return "{" + ", ".join(f"{_leaf(k)}: {source(v)}" for k, v in node.items()) + "}"
+    return _leaf(node)
 
 
 def _walk(node: object) -> Iterator[object]:

@@ -13,7 +13,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from hyperfem.app.calls import imports as node_imports
-from hyperfem.app.calls import literal, source
+from hyperfem.app.calls import source
 from hyperfem.app.plan import Statement, plan
 from hyperfem.app.spec import Case
 
@@ -124,5 +124,5 @@ def script(case: Case, restart: str | Path | None = None) -> str:
         'objects as ``hyperfem run`` and gives the same result.\n"""\n'
     )
     body = "\n".join(statement_source(s, "    ") for s in statements)
-    footer = FOOTER.replace("{restart}", "" if restart is None else f"restart={literal(Path(restart))}")
+    footer = FOOTER.replace("{restart}", "" if restart is None else f"restart={source(Path(restart))}")
     return f"{doc}\n{header}\n\n\ndef main() -> dict:\n    comm = MPI.COMM_WORLD\n{body}\n{footer}"
