@@ -163,11 +163,6 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
                     raise CaseFileError(
                         f"{m.key}: missing required key 'density' (a dynamic run needs the mass density)"
                     )
-        if stepping.dynamic and contacts:
-            raise CaseFileError(
-                f"{contacts[0].key}: contact in dynamic runs is not available yet (quasi-static stepping only in "
-                "this version)"
-            )
         degree = problem.degree or (2 if problem.formulation == "mixed" else 1)
         if stepping.lumped_mass and degree != 1:
             raise CaseFileError(

@@ -19,8 +19,14 @@ form. :class:`ExternalTerms` adds them to what
   the assembled matrix with the rows *and* columns of Dirichlet dofs zeroed,
   so those rows stay identity rows and the columns zero (DOLFINx has applied
   the conditions to the assembled matrix already);
-* the **start check**: a state an energy refuses (a node through an obstacle)
-  is not solved from: the solve fails and the stepper cuts back;
+* the **start guess**: a time integrator moves the state before the solve
+  (:math:`w_n + \Delta t\,v_n`); where that guess goes through an obstacle
+  it is pulled back along the segment from the last state the solver
+  converged to, by the energies' step filters (:meth:`ExternalTerms.pull_back`),
+  so a dynamic step starts intersection-free instead of failing;
+* the **start check**: a state an energy still refuses (an obstacle that moved
+  into the body) is not solved from, and nothing is assembled there: the
+  solve fails and the stepper cuts back;
 * the **step filters** the energies bring (a continuous collision detection),
   composed with the inversion filter.
 
@@ -107,6 +113,8 @@ class ExternalTerms:
         self._constrained = np.zeros(len(self._global), dtype=bool)
         for bc in problem.bcs:
             self._constrained[bc.dof_indices()[0]] = True
+        # The last state the solver converged to (the state at construction until then): admissible.
+        self._anchor = problem.u.x.array.copy()
 
     def __bool__(self) -> bool:
         return bool(self.energies)
@@ -154,3 +162,44 @@ class ExternalTerms:
         """Why an energy refuses the current state (the first reason over the ranks), or ``""`` (collective)."""
         local = next((why for e in self.energies if (why := e.admissible(self.u.x.array))), "")
         return next((why for why in self.comm.allgather(local) if why), "")
+
+    def remember(self) -> None:
+        """Keep the current state as the anchor of :meth:`pull_back` (the solver calls it after a converged solve)."""
+        self._anchor[:] = self.u.x.array
+
+    def pull_back(self) -> bool:
+        r"""Move a refused start guess back toward the anchor, to the fraction the step filters allow (collective).
+
+        With :math:`w_a` the anchor (the last converged state) and :math:`w_g`
+        the guess, the state becomes :math:`w_a + \alpha (w_g - w_a)`, where
+        :math:`\alpha` is the smallest fraction the energies' step filters give
+        the step from :math:`w_a` to :math:`w_g` (their continuous collision
+        detection: every node keeps part of its distance). The filters'
+        counters are left as they were (this is no Newton step).
+
+        Returns:
+            Whether the state moved: ``False`` where the guess is admissible
+            already, or where the anchor is refused at the current time too
+            (an obstacle moved into the body: the start check then refuses the solve).
+        """
+        if not self.refusal():
+            return False
+        guess = self.u.x.array.copy()
+        self.u.x.array[:] = self._anchor
+        if self.refusal():
+            self.u.x.array[:] = guess
+            return False
+        x = self.u.x.petsc_vec.copy()  # the anchor's owned entries
+        y = x.duplicate()
+        y.array_w[:] = self._anchor[: len(y.array_r)] - guess[: len(y.array_r)]
+        try:
+            alpha = 1.0
+            for step_filter in self.step_filters:
+                kept = (step_filter.filtered_steps, step_filter.min_step_fraction)
+                alpha = min(alpha, step_filter.step_fraction(x, y))
+                step_filter.filtered_steps, step_filter.min_step_fraction = kept
+        finally:
+            x.destroy()
+            y.destroy()
+        self.u.x.array[:] = self._anchor + alpha * (guess - self._anchor)
+        return True

@@ -599,7 +599,12 @@ class NewtonSolver:
         """
         counts = self._start_solve()
         start = time.perf_counter()
-        predicted = self.predictor and self._boundary_predictor.moved() and self._predict()
+        # An external energy (contact) is never assembled at a refused state: a refused start guess is pulled
+        # back toward the last converged state first, and the predictor runs only from an admissible one.
+        if self.external:
+            self.external.pull_back()
+        admissible = not (self.external and self.external.refusal())
+        predicted = admissible and self.predictor and self._boundary_predictor.moved() and self._predict()
         self._apply_dirichlet()
         refusal = self._start_refusal()
         solved = not refusal
@@ -616,6 +621,8 @@ class NewtonSolver:
         reason, message, indicators = self._check_solution(reason, message)
         wall = time.perf_counter() - start
         record = self._record(counts, reason, message, indicators, solved, iterations, ksp_reason, predicted, wall)
+        if record.converged and self.external:
+            self.external.remember()
         if raise_on_failure and not record.converged:
             detail = f": {message}" if message else ""
             raise ConvergenceError(
