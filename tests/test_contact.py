@@ -399,6 +399,162 @@ def test_dynamic_drop_one_rank_equals_two_ranks():
     assert _dropped_state(comm) == pytest.approx(one, rel=1e-10)
 
 
+# -- the sphere -----------------------------------------------------------------------------------------------------
+
+
+def test_sphere_step_fraction_is_the_first_root_of_the_inflated_ball():
+    """Every node keeps (1 - s) of its distance up to the fraction, and the closest one reaches it exactly there."""
+    from hyperfem.contact import CCD_SAFETY, sphere_step_fraction
+
+    rng = np.random.default_rng(5)
+    radius = 0.3
+    for _ in range(200):
+        direction = rng.standard_normal(3)
+        offset = (radius + rng.uniform(1e-4, 0.2)) * direction / np.linalg.norm(direction)
+        step = 0.5 * rng.standard_normal(3)
+        alpha = sphere_step_fraction(offset[None, :], step[None, :], radius)
+        d0 = np.linalg.norm(offset) - radius
+        along = np.linalg.norm(offset[None, :] - np.linspace(0.0, alpha, 401)[:, None] * step[None, :], axis=1) - radius
+        assert along.min() >= (1.0 - CCD_SAFETY) * d0 * (1.0 - 1e-9)
+        if alpha < 1.0:
+            assert along[-1] == pytest.approx((1.0 - CCD_SAFETY) * d0, rel=1e-9)
+    moving_away = sphere_step_fraction(np.array([[0.0, 0.0, 0.5]]), np.array([[0.0, 0.0, -1.0]]), radius)
+    passing_by = sphere_step_fraction(np.array([[0.0, 0.0, 0.5]]), np.array([[1.0, 0.0, 0.0]]), radius)
+    assert moving_away == 1.0 and passing_by == 1.0
+
+
+def test_sphere_barrier_taylor_and_psd_projection():
+    """Gradient and exact Hessian of kappa*B for a sphere against its energy (O(eps^2), O(eps^3)); the tangent's
+    blocks are the exact ones projected onto the PSD cone: b'' n n^T here, since b' (I - n n^T)/r is negative."""
+    from hyperfem.contact import SphereContact
+
+    problem = _block(n=2)
+    radius = 5.0  # the nodes at 0.5 from the centre of the face are 0.03 from it: 5 active nodes
+    contact = SphereContact("bottom", center=(0.5, 0.5, -radius - 4e-3), radius=radius, dhat=5e-2, stiffness=0.5)
+    barrier_term = contact.bind(problem)
+    comm = problem.domain.comm
+    rng = np.random.default_rng(comm.rank + 7)
+    u = 1e-4 * rng.standard_normal(problem.u.x.array.size)
+    du = 1e-3 * rng.standard_normal(u.size)
+
+    def total(values):
+        return comm.allreduce(barrier_term.energy(values), op=MPI.SUM)
+
+    def dot(a, b):
+        return comm.allreduce(float(a @ b), op=MPI.SUM)
+
+    dofs, g = barrier_term.gradient(u)
+    hdofs, exact = barrier_term.hessian(u, project=False)
+    assert comm.allreduce(len(dofs), op=MPI.SUM) >= 5  # the nodes near the centre of the face are active
+    G = np.zeros(u.size)
+    np.add.at(G, dofs.ravel(), g.ravel())
+    Hdu = np.zeros(u.size)
+    np.add.at(Hdu, hdofs.ravel(), np.einsum("mij,mj->mi", exact, du[hdofs]).ravel())
+    E0, first, second = total(u), [], []
+    for eps in (1e-1, 1e-2, 1e-3):
+        E1 = total(u + eps * du)
+        first.append(abs(E1 - E0 - eps * dot(G, du)))
+        second.append(abs(E1 - E0 - eps * dot(G, du) - 0.5 * eps**2 * dot(du, Hdu)))
+    assert np.array(first[1:]) / np.array(first[:-1]) == pytest.approx([1e-2, 1e-2], rel=0.05)
+    assert second[1] / second[0] == pytest.approx(1e-3, rel=0.1)  # at 1e-3: round-off (1e-16 of the energy)
+    _, projected = barrier_term.hessian(u)
+    lowest = np.linalg.eigvalsh(projected).min() if len(projected) else 0.0
+    assert lowest >= -1e-12 * (np.abs(projected).max() if len(projected) else 0.0)
+    indefinite = comm.allreduce(float(np.linalg.eigvalsh(exact).min()) if len(exact) else 0.0, op=MPI.MIN)
+    assert indefinite < 0.0  # the exact blocks are indefinite
+    q = barrier_term.nodes.positions(u)[np.isin(barrier_term.nodes.dofs[:, 0], hdofs[:, 0])] - barrier_term._center
+    n = q / np.linalg.norm(q, axis=1)[:, None]
+    _, _, b2 = barrier_term._active(u)
+    assert projected == pytest.approx(0.5 * b2[:, None, None] * np.einsum("mi,mj->mij", n, n), rel=1e-9, abs=1e-12)
+
+
+HERTZ_RADIUS = 0.5
+
+
+def _indented(comm, n=12, grading=2.5, depth=0.02, steps=2, dhat=1e-4):
+    r"""A quarter of a 2 x 2 x 1 block (symmetry rollers on x = 0, y = 0) pushed up by ``depth`` against a fixed
+    sphere of radius 0.5 above the corner: graded toward the contact (:math:`x \to x^p`), clamped bottom moved up."""
+    from hyperfem.contact import SphereContact
+
+    mesh = dmesh.create_unit_cube(comm, n, n, n)
+    x = mesh.geometry.x
+    x[:, 0], x[:, 1], x[:, 2] = x[:, 0] ** grading, x[:, 1] ** grading, 1.0 - (1.0 - x[:, 2]) ** grading
+    groups = {
+        "top": lambda x: np.isclose(x[2], 1.0),
+        "bottom": lambda x: np.isclose(x[2], 0.0),
+        "x0": lambda x: np.isclose(x[0], 0.0),
+        "y0": lambda x: np.isclose(x[1], 0.0),
+    }
+    domain = hf.Domain.from_locators(mesh, groups, source=f"graded cube({n})")
+    gap = dhat / 2
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("bottom", [0.0, 0.0, depth + gap]),
+    ]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+    tool = SphereContact("top", center=(0.0, 0.0, 1.0 + gap + HERTZ_RADIUS), radius=HERTZ_RADIUS, dhat=dhat)
+    contact = tool.bind(problem)
+    solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-10}, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    summary = Simulation(problem, solver, hf.StepPolicy(increment=1.0 / steps), [Recorder(contact)]).run()
+    return problem, contact, summary, iterates
+
+
+def hertz_force(depth: float) -> float:
+    r"""Hertz: a rigid sphere pressed :math:`\delta` into a half-space, :math:`F = \tfrac43 E^* R^{1/2}\delta^{3/2}`,
+    :math:`E^* = E/(1 - \nu^2)`."""
+    return 4.0 / 3.0 * (1.0 / (1.0 - 0.3**2)) * np.sqrt(HERTZ_RADIUS) * depth**1.5
+
+
+@pytest.mark.filterwarnings("ignore::hyperfem.mesh.quality.MeshQualityWarning")
+def test_sphere_indentation_force_grows_as_hertz():
+    """Indentation 0.01 and 0.02 (contact radius 0.07, 0.1 on a graded P1 mesh, cells 0.002 at the tool): the force
+    grows as depth^1.5 (exponent 1.46 here, 1.52 at n = 16) and is 4 x Hertz's (a quarter model) within 25 % (+24 %,
+    +20 % here; +18 %, +19 % at n = 16: P1 stiffness and the 1-thick clamped layer, decreasing under refinement);
+    no iterate or step penetrates."""
+    depth = 0.02
+    problem, contact, summary, iterates = _indented(MPI.COMM_WORLD, depth=depth)
+    rows = summary["rows"]
+    assert summary["completed"] and min(iterates) > 0.0 and all(row["contact_min_distance"] > 0.0 for row in rows)
+    forces = [-row["contact_force"][2] for row in rows[1:]]
+    depths = [depth / 2, depth]
+    exponent = np.log(forces[1] / forces[0]) / np.log(2.0)
+    assert exponent == pytest.approx(1.5, abs=0.1)
+    for force, d in zip(forces, depths, strict=True):
+        assert 1.0 < force / (hertz_force(d) / 4.0) < 1.25
+    fx, fy, _ = rows[-1]["contact_force"]
+    assert fx == pytest.approx(fy, rel=1e-6) and 0.0 < fx < 0.1 * forces[-1]  # outward on the quarter, symmetric
+
+
+def _indentation_state(comm) -> list[float]:
+    problem, contact, _, _ = _indented(comm, n=5, grading=2.0, depth=0.02, steps=1, dhat=1e-3)
+    return [*map(float, contact.force()), float(problem.u.x.petsc_vec.norm()), contact.min_distance()]
+
+
+@pytest.mark.filterwarnings("ignore::hyperfem.mesh.quality.MeshQualityWarning")
+def test_sphere_one_rank_equals_two_ranks():
+    """A small indentation: force, displacement norm and min distance on 2 ranks equal 1 rank's to 1e-10."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    pc_setup_seconds()  # a collective call: on every rank before the 1-rank solve on rank 0
+    one = _indentation_state(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    assert _indentation_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-14)
+
+
+def test_sphere_bad_input_is_one_line():
+    from hyperfem.contact import SphereContact
+
+    with pytest.raises(ParameterError, match="radius must be a finite number > 0"):
+        SphereContact("bottom", center=(0.0, 0.0, -1.0), radius=-1.0)
+    with pytest.raises(ParameterError, match="motion has 2 components, center has 3"):
+        SphereContact("bottom", center=(0.0, 0.0, -1.0), radius=1.0, motion=(0.0, 1.0))
+    with pytest.raises(ParameterError, match=r"wrong side of the sphere: the node at .* has distance"):
+        SphereContact("bottom", center=(0.5, 0.5, 0.0), radius=0.2).bind(_block(n=2))
+
+
 # -- bad input ------------------------------------------------------------------------------------------------------
 
 

@@ -3,7 +3,7 @@ r"""Contact: bodies that touch rigid obstacles, intersection-free, as one more t
 The total potential becomes :math:`\Pi(u) = \Pi_\text{elastic}(u) - W_\text{ext}(u) + \kappa B(x(u))`,
 :math:`B` the barrier of Incremental Potential Contact (Li et al. 2020) over the
 distances between the contact nodes and the obstacle. This first slice of
-issue 19: a rigid plane (half-space) with a prescribed translation, frictionless.
+issue 19: a rigid plane (half-space) or sphere with a prescribed translation, frictionless.
 
 * :class:`PlaneContact` — the contact (boundary, plane, :math:`\hat d`,
   :math:`\kappa`); ``.bind(problem)`` gives the :class:`PlaneBarrier`, passed to
@@ -21,22 +21,35 @@ without it raises a one-line :class:`~hyperfem.errors.ParameterError`.
 """
 
 from hyperfem.contact.barrier import CONTACT_EXTRA, barrier, barrier_derivatives, require_ipctk
-from hyperfem.contact.ccd import CCD_SAFETY, PlaneCollisionFilter, plane_step_fraction
+from hyperfem.contact.ccd import (
+    CCD_SAFETY,
+    PlaneCollisionFilter,
+    SphereCollisionFilter,
+    plane_step_fraction,
+    sphere_step_fraction,
+)
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, default_dhat, default_stiffness
 from hyperfem.contact.nodes import BoundaryNodes, boundary_nodes, facet_size
-from hyperfem.contact.obstacles import HalfSpace
+from hyperfem.contact.nodal import NodalBarrier
+from hyperfem.contact.obstacles import Ball, HalfSpace
 from hyperfem.contact.plane import PlaneBarrier, PlaneContact
+from hyperfem.contact.sphere import SphereBarrier, SphereContact, project_psd
 
 __all__ = [
     "CCD_SAFETY",
     "CONTACT_EXTRA",
     "DHAT_FRACTION",
     "STIFFNESS_FACTOR",
+    "Ball",
     "BoundaryNodes",
     "HalfSpace",
+    "NodalBarrier",
     "PlaneBarrier",
     "PlaneCollisionFilter",
     "PlaneContact",
+    "SphereBarrier",
+    "SphereCollisionFilter",
+    "SphereContact",
     "barrier",
     "barrier_derivatives",
     "boundary_nodes",
@@ -44,5 +57,7 @@ __all__ = [
     "default_stiffness",
     "facet_size",
     "plane_step_fraction",
+    "project_psd",
     "require_ipctk",
+    "sphere_step_fraction",
 ]

@@ -16,6 +16,20 @@ costs one pass over the owned contact nodes and one ``allreduce``; nothing of
 the (slow, for this wheel) TightInclusion CCD of ``ipctk`` is needed for a
 plane. It implements :class:`~hyperfem.solver.filters.NewtonStepFilter`,
 composed with the inversion filter: :math:`\alpha = \min(\alpha_\text{inv}, \alpha_\text{CCD})`.
+
+A node at :math:`q_0 = x_a - c` from the centre of a static ball of radius
+:math:`R` (:func:`sphere_step_fraction`, :class:`SphereCollisionFilter`) is at
+:math:`d(\alpha) = |q_0 - \alpha y_a| - R`, convex in :math:`\alpha`. The
+filter takes the first root of :math:`|q_0 - \alpha y_a| = R + (1 - s)\,d_0`,
+a quadratic,
+
+.. math::
+    |y_a|^2\alpha^2 - 2 (q_0\cdot y_a)\,\alpha + |q_0|^2 - R_s^2 = 0, \qquad
+    \alpha_a = \frac{|q_0|^2 - R_s^2}{q_0\cdot y_a + \sqrt{(q_0\cdot y_a)^2 - |y_a|^2(|q_0|^2 - R_s^2)}},
+
+(the cancellation-free form; no root when the node moves away or passes
+by), so again every node keeps at least :math:`(1 - s)` of its distance over
+the whole filtered step, and :math:`\alpha = \min(1, \min_a \alpha_a)`.
 """
 
 from __future__ import annotations
@@ -28,7 +42,7 @@ from petsc4py import PETSc
 
 from hyperfem.solver.filters import NoAdmissibleStep
 
-__all__ = ["CCD_SAFETY", "PlaneCollisionFilter", "plane_step_fraction"]
+__all__ = ["CCD_SAFETY", "PlaneCollisionFilter", "SphereCollisionFilter", "plane_step_fraction", "sphere_step_fraction"]
 
 CCD_SAFETY = 0.9
 r"""The safety :math:`s`: a node keeps at least :math:`1 - s` (10 %) of its distance over a filtered step."""
@@ -95,6 +109,88 @@ class PlaneCollisionFilter:
         if not lowest > 0.0:
             raise NoAdmissibleStep(f"a contact node is on or behind the obstacle (distance {lowest:.3g})")
         fraction = comm.allreduce(plane_step_fraction(d0, approach, self.safety), op=MPI.MIN)
+        if fraction < 1.0:
+            self.filtered_steps += 1
+            self.min_step_fraction = min(self.min_step_fraction, fraction)
+        return fraction
+
+
+def sphere_step_fraction(offset: np.ndarray, step: np.ndarray, radius: float, safety: float = CCD_SAFETY) -> float:
+    r"""The largest :math:`\alpha \le 1` over which every node keeps :math:`|q_0 - \alpha y| - R \ge (1 - s) d_0`.
+
+    The first root of the quadratic of the module docstring, per node.
+
+    Args:
+        offset: :math:`q_0 = x - c` per node, shape ``(m, dim)``, with :math:`|q_0| > R`.
+        step: :math:`y` per node, shape ``(m, dim)`` (the trial positions are :math:`x - \alpha y`).
+        radius: :math:`R`.
+        safety: :math:`s \in (0, 1)`.
+    """
+    if not len(offset):
+        return 1.0
+    norm = np.linalg.norm(offset, axis=1)
+    reach = radius + (1.0 - safety) * (norm - radius)  # R_s: the ball inflated by the distance each node keeps
+    a = np.einsum("ij,ij->i", step, step)
+    b = np.einsum("ij,ij->i", offset, step)
+    c = (norm - reach) * (norm + reach)
+    disc = b * b - a * c
+    hit = (b > 0.0) & (disc >= 0.0) & (a > 0.0)
+    if not np.any(hit):
+        return 1.0
+    roots = c[hit] / (b[hit] + np.sqrt(disc[hit]))
+    return float(min(1.0, roots.min()))
+
+
+class SphereCollisionFilter:
+    r"""A :class:`~hyperfem.solver.filters.NewtonStepFilter` that keeps contact nodes outside a ball (module docstring).
+
+    Args:
+        dofs: Owned local dofs of the contact nodes, shape ``(m, dim)``.
+        X: Their reference coordinates, shape ``(m, dim)``.
+        center: The ball's centre now (called: it moves with the time).
+        radius: :math:`R`.
+        safety: :math:`s` (:data:`CCD_SAFETY`).
+
+    Attributes:
+        cutbacks: Always 0 (the filter never halves).
+        filtered_steps: Newton steps it shortened.
+        min_step_fraction: The smallest fraction it allowed since the solver reset it.
+        min_distance: The smallest distance of an iterate it has seen since the last reset to ``inf``.
+    """
+
+    def __init__(
+        self,
+        dofs: np.ndarray,
+        X: np.ndarray,
+        center: Callable[[], np.ndarray],
+        radius: float,
+        safety: float = CCD_SAFETY,
+    ):
+        self.dofs = dofs
+        self.X = X
+        self.center = center
+        self.radius = float(radius)
+        self.safety = float(safety)
+        self.cutbacks = 0
+        self.filtered_steps = 0
+        self.min_step_fraction = 1.0
+        self.min_distance = float("inf")
+
+    def step_fraction(self, x: PETSc.Vec, y: PETSc.Vec) -> float:
+        """The fraction of the step (collective).
+
+        Raises:
+            NoAdmissibleStep: A node of the current iterate is on or inside the ball.
+        """
+        comm = x.getComm().tompi4py()
+        offset = self.X + x.array_r[self.dofs] - self.center()
+        step = y.array_r[self.dofs]
+        d0 = np.linalg.norm(offset, axis=1) - self.radius
+        lowest = comm.allreduce(float(d0.min()) if len(d0) else float("inf"), op=MPI.MIN)
+        self.min_distance = min(self.min_distance, lowest)
+        if not lowest > 0.0:
+            raise NoAdmissibleStep(f"a contact node is on or inside the sphere (distance {lowest:.3g})")
+        fraction = comm.allreduce(sphere_step_fraction(offset, step, self.radius, self.safety), op=MPI.MIN)
         if fraction < 1.0:
             self.filtered_steps += 1
             self.min_step_fraction = min(self.min_step_fraction, fraction)

@@ -1,4 +1,4 @@
-r"""Rigid obstacles of contact: a half-space (a plane) with a prescribed translation.
+r"""Rigid obstacles of contact: a half-space (a plane) and a ball (a sphere), with a prescribed translation.
 
 The obstacle :math:`\{x : (x - p(t))\cdot n < 0\}` with the unit outward
 normal :math:`n` and the point
@@ -10,8 +10,10 @@ normal :math:`n` and the point
 or time (:mod:`hyperfem.loading.profiles`, as for the values of a
 :class:`~hyperfem.problem.PrescribedDisplacement`). The signed distance of a
 point :math:`x` from the plane is :math:`d(x) = (x - p(t))\cdot n`: positive
-on the body's side. Rotating obstacles, spheres, cylinders and triangulated
-tools are later slices of issue 19.
+on the body's side. A :class:`Ball` of radius :math:`R` centred at
+:math:`c(t) = c_0 + f(t)\,m` gives :math:`d(x) = |x - c(t)| - R`, positive
+outside. Rotating obstacles, cylinders and triangulated tools are later
+slices of issue 19.
 """
 
 from __future__ import annotations
@@ -23,9 +25,9 @@ import numpy as np
 
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
-from hyperfem.validation import check_callable, check_finite_vector
+from hyperfem.validation import check_callable, check_finite_vector, check_positive
 
-__all__ = ["HalfSpace", "check_plane"]
+__all__ = ["Ball", "HalfSpace", "check_ball", "check_plane"]
 
 
 def check_plane(
@@ -94,3 +96,63 @@ class HalfSpace:
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
         r""":math:`(x - p(t))\cdot n` of points ``x`` (shape ``(m, dim)``): positive on the body's side."""
         return (np.asarray(x, dtype=float) - self.origin(t)) @ self.unit_normal
+
+
+def check_ball(
+    center: Sequence[float], radius: float, motion: Sequence[float] | None, where: str
+) -> tuple[tuple[float, ...], float, tuple[float, ...] | None]:
+    """The centre, radius and motion of a sphere (float tuples of one length, 2 or 3); a one-line error otherwise.
+
+    Raises:
+        ParameterError: A non-finite entry, a length other than 2 or 3, lengths
+            that differ, or a radius that is not a finite number > 0.
+    """
+    c = check_finite_vector(center, where, "center")
+    m = None if motion is None else check_finite_vector(motion, where, "motion")
+    for what, v in (("center", c), ("motion", m)):
+        if v is not None and len(v) not in (2, 3):
+            raise ParameterError(f"{where}: {what} must have 2 or 3 components, got {len(v)}")
+        if v is not None and len(v) != len(c):
+            raise ParameterError(f"{where}: {what} has {len(v)} components, center has {len(c)}")
+    check_positive("radius", radius, where)
+    return c, float(radius), m
+
+
+@dataclass(frozen=True)
+class Ball:
+    r"""A rigid ball of radius ``radius`` centred at ``center``, translated by ``profile(t)·motion``.
+
+    Attributes:
+        center: The centre :math:`c_0` at :math:`t` with ``profile(t) = 0``.
+        radius: :math:`R > 0`.
+        motion: The translation :math:`m` (``None``: the ball does not move).
+        profile: :math:`f(t)` of the translation (default: the load factor).
+    """
+
+    center: Sequence[float]
+    radius: float
+    motion: Sequence[float] | None = None
+    profile: Callable[[float], float] = linear_profile
+
+    def __post_init__(self) -> None:
+        c, r, m = check_ball(self.center, self.radius, self.motion, "Ball")
+        check_callable(self.profile, "Ball", "profile")
+        object.__setattr__(self, "center", c)
+        object.__setattr__(self, "radius", r)
+        object.__setattr__(self, "motion", m)
+
+    @property
+    def dim(self) -> int:
+        """The number of components (2 or 3)."""
+        return len(self.center)
+
+    def origin(self, t: float) -> np.ndarray:
+        """The centre :math:`c(t) = c_0 + f(t)\\,m` at time (load factor) ``t``."""
+        c = np.asarray(self.center, dtype=float)
+        if self.motion is None:
+            return c
+        return c + float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+
+    def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
+        r""":math:`|x - c(t)| - R` of points ``x`` (shape ``(m, dim)``): positive outside."""
+        return np.linalg.norm(np.asarray(x, dtype=float) - self.origin(t), axis=1) - float(self.radius)

@@ -43,12 +43,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from mpi4py import MPI
-from petsc4py import PETSc
 
-from hyperfem.contact.barrier import barrier, barrier_derivatives, require_ipctk
+from hyperfem.contact.barrier import require_ipctk
 from hyperfem.contact.ccd import CCD_SAFETY, PlaneCollisionFilter
 from hyperfem.contact.defaults import default_dhat, default_stiffness
+from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.obstacles import HalfSpace, check_plane
 from hyperfem.errors import ParameterError
@@ -122,7 +121,7 @@ class PlaneContact:
         return PlaneBarrier(self, problem)
 
 
-class PlaneBarrier:
+class PlaneBarrier(NodalBarrier):
     r"""The barrier term :math:`\kappa B(u)` of a :class:`PlaneContact` on a problem (module docstring).
 
     An :class:`~hyperfem.solver.external.ExternalEnergy`. Its outputs
@@ -142,6 +141,9 @@ class PlaneBarrier:
         time: The time (load factor) the plane is at.
     """
 
+    behind = "on or behind the plane"
+    side_hint = "; the normal points to the body's side"
+
     def __init__(self, contact: PlaneContact, problem: SolidProblem):
         self.contact = contact
         self.where = f"PlaneContact on {contact.boundary!r}"
@@ -156,7 +158,7 @@ class PlaneBarrier:
         self.nodes = boundary_nodes(problem, contact.boundary)
         self.dhat = contact.dhat if contact.dhat is not None else default_dhat(problem, contact.boundary)
         self.update(problem.time)
-        self._check_start()
+        self._check_start("plane")
         self.stiffness = (
             contact.stiffness if contact.stiffness is not None else default_stiffness(problem, self.nodes, self.normal)
         )
@@ -172,17 +174,6 @@ class PlaneBarrier:
         """Signed distances :math:`d_a` of the owned nodes for the unknown's local array ``u``."""
         return (self.nodes.positions(u) - self._origin) @ self.normal
 
-    def energy(self, u: np.ndarray) -> float:
-        r"""This rank's :math:`\kappa\sum_a b(d_a)` (``inf`` if a node is on or behind the plane)."""
-        return self.stiffness * float(barrier(self.distances(u), self.dhat).sum())
-
-    def _active(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Rows of the nodes with :math:`d < \\hat d` and their :math:`b'`, :math:`b''`."""
-        d = self.distances(u)
-        rows = np.flatnonzero(d < self.dhat)
-        first, second = barrier_derivatives(d[rows], self.dhat)
-        return rows, first, second
-
     def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`\kappa b'(d_a)\,n` at the active nodes: ``(dofs, values)`` of shape ``(m, dim)``."""
         rows, first, _ = self._active(u)
@@ -193,60 +184,3 @@ class PlaneBarrier:
         rows, _, second = self._active(u)
         outer = np.outer(self.normal, self.normal)
         return self.nodes.dofs[rows], self.stiffness * second[:, None, None] * outer[None, :, :]
-
-    def admissible(self, u: np.ndarray) -> str:
-        """``""``, or which owned node is on or behind the plane and its distance."""
-        d = self.distances(u)
-        if not len(d) or d.min() > 0.0:
-            return ""
-        k = int(np.argmin(d))
-        return (
-            f"{self.where}: the node at {tuple(float(f'{v:.6g}') for v in self.nodes.X[k])} is on or behind the "
-            f"plane at t = {self.time:g} (distance {d[k]:.3g})"
-        )
-
-    # -- outputs ------------------------------------------------------------
-    def _state(self, u: np.ndarray | PETSc.Vec | None) -> np.ndarray:
-        if u is None:
-            return self.problem.u.x.array
-        return u.array_r if isinstance(u, PETSc.Vec) else u
-
-    def force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
-        r"""The force the plane exerts on the body, :math:`-\sum_a \kappa b'(d_a)\,n` (collective).
-
-        Args:
-            u: The unknown's local array or a SNES vector (default: the current state).
-        """
-        _, values = self.gradient(self._state(u))
-        return -self.comm.allreduce(values.sum(axis=0), op=MPI.SUM)
-
-    def active_count(self, u: np.ndarray | PETSc.Vec | None = None) -> int:
-        r"""Nodes with :math:`d_a < \hat d`, over all ranks (collective)."""
-        return int(self.comm.allreduce(int((self.distances(self._state(u)) < self.dhat).sum()), op=MPI.SUM))
-
-    def min_distance(self, u: np.ndarray | PETSc.Vec | None = None) -> float:
-        """The smallest signed distance of a contact node, over all ranks (collective)."""
-        d = self.distances(self._state(u))
-        return float(self.comm.allreduce(float(d.min()) if len(d) else float("inf"), op=MPI.MIN))
-
-    def record(self, step: object = None) -> dict[str, object]:
-        """The output columns at the current state: ``<name>_force``, ``<name>_active``, ``<name>_min_distance``."""
-        name = self.contact.name
-        return {
-            f"{name}_force": [float(v) for v in self.force()],
-            f"{name}_active": self.active_count(),
-            f"{name}_min_distance": self.min_distance(),
-        }
-
-    def _check_start(self) -> None:
-        """A one-line :class:`ParameterError` (every rank) if a node starts on or behind the plane."""
-        u = self.problem.u.x.array
-        d = self.distances(u)
-        local = (float(d.min()), self.nodes.X[int(np.argmin(d))].tolist()) if len(d) else (float("inf"), [])
-        distance, X = min(self.comm.allgather(local), key=lambda item: item[0])
-        if not distance > 0.0:
-            where = tuple(float(f"{v:.6g}") for v in X)
-            raise ParameterError(
-                f"{self.where}: the body starts on the wrong side of the plane: the node at {where} has distance "
-                f"{distance:.6g} (need > 0; the normal points to the body's side)"
-            )
