@@ -21,14 +21,15 @@ from mpi4py import MPI
 pytest.importorskip("ipctk")
 
 from hyperfem.app import build, check_groups, load_case, script  # noqa: E402
-from hyperfem.app.build import build_domain  # noqa: E402
+from hyperfem.app.build import build_domain, check_dimensions  # noqa: E402
 from hyperfem.app.calls import source  # noqa: E402
 from hyperfem.app.casefile import CaseFileError  # noqa: E402
-from hyperfem.contact import PlaneBarrier, PlaneContact  # noqa: E402
+from hyperfem.contact import PlaneBarrier, PlaneContact, SphereBarrier  # noqa: E402
 
 from case_texts import ROOT  # noqa: E402
 
 CASE = ROOT / "cases" / "block_on_plane.toml"
+SPHERE = {"type": "sphere", "center": [0.5, 0.5, -2.0005], "radius": 2.0, "dhat": 1e-3}
 E, NU = 1.0e6, 0.3
 
 
@@ -84,8 +85,12 @@ def test_block_on_plane_matches_the_closed_form_and_the_reaction(shared_tmp):
         ({"normal": [0.0, 0.0, 0.0]}, "contact[0].normal: must not be zero"),
         ({"dhat": -1.0}, "contact[0].dhat: must be > 0, got -1.0"),
         ({"motion": [0.0, 1.0]}, "contact[0].motion: 2 components for a point of 3"),
-        ({"type": "sphere"}, "contact[0].type: unknown value 'sphere'"),
+        ({"type": "cylinder"}, "contact[0].type: unknown value 'cylinder'"),
         ({"gap": 1.0}, "contact[0].gap: unknown key"),
+        ({"type": "sphere"}, "contact[0].point: unknown key"),
+        (SPHERE | {"radius": 0.0}, "contact[0].radius: must be > 0"),
+        (SPHERE | {"center": [0.5, 0.5]}, "contact[0].center: 2 components"),
+        (SPHERE | {"motion": [0.0, 1.0]}, "contact[0].motion: 2 components for a center of 3"),
     ],
 )
 def test_bad_contact_entries_name_their_key(shared_tmp, change, expected):
@@ -95,10 +100,43 @@ def test_bad_contact_entries_name_their_key(shared_tmp, change, expected):
 
     data = tomllib.loads(CASE.read_text())
     data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+    if change.get("type") == "sphere" and "radius" in change:
+        data["contact"][0] = {"boundary": "bottom"}
     data["contact"][0].update(change)
     with pytest.raises(CaseFileError) as info:
-        check_case(data, shared_tmp / "bad.toml")
+        case = check_case(data, shared_tmp / "bad.toml")
+        check_dimensions(case, build_domain(case, MPI.COMM_WORLD))
     assert expected in str(info.value)
+
+
+def _sphere_case(shared_tmp):
+    """The block's bottom above a rigid sphere of radius 2 (instead of the plane), its top pushed down by 2 cm."""
+    import tomllib
+
+    from hyperfem.app.casefile import check_case
+
+    data = tomllib.loads(CASE.read_text())
+    data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+    data["contact"][0] = {"boundary": "bottom", **SPHERE}
+    data["bc"][2]["value"] = [-0.02]
+    data["output"].update({"fields": [], "checkpoint": False, "directory": str(shared_tmp / "sphere")})
+    return check_case(data, shared_tmp / "sphere.toml")
+
+
+def test_sphere_contact_in_a_case_file(shared_tmp):
+    """``type = "sphere"``: the plan binds SphereContact (the script shows it); the block pressed on the sphere:
+    a force, never penetrating, and the sphere's force balances the reaction of the pushed face at every step."""
+    case = _sphere_case(shared_tmp)
+    text = script(case)
+    assert "contact = SphereContact('bottom', center=(0.5, 0.5, -2.0005), radius=2.0, dhat=0.001).bind(problem)" in text
+    built = build(case)
+    assert isinstance(built.variables["contact"], SphereBarrier)
+    summary = built.simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and rows[-1]["contact_active"] > 0 and rows[-1]["contact_force"][2] > 1e3
+    for row in rows[1:]:  # (the nodes nearest the top of the sphere reach it after the first step)
+        assert row["contact_min_distance"] > 0.0
+        assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8, abs=1e-6)
 
 
 def test_contact_in_a_dynamic_run(shared_tmp):

@@ -126,8 +126,9 @@ def check_dimensions(case: Case, domain: Domain) -> None:
         elif isinstance(load.value, tuple) and len(load.value) != gdim:
             fail(f"{load.key}.value", f"{len(load.value)} components")
     for contact in case.contacts:
-        if len(contact.point) != gdim:
-            fail(f"{contact.key}.point", f"{len(contact.point)} components")
+        name, where = ("center", contact.center) if contact.type == "sphere" else ("point", contact.point)
+        if where is not None and len(where) != gdim:
+            fail(f"{contact.key}.{name}", f"{len(where)} components")
     if case.fibres is not None and case.fibres.type == "constant" and len(case.fibres.options["direction"]) != gdim:
         fail("fibres.direction", f"{len(case.fibres.options['direction'])} components")
 

@@ -25,7 +25,7 @@ from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
 from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
-from hyperfem.contact import PlaneContact
+from hyperfem.contact import PlaneContact, SphereContact
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -436,8 +436,14 @@ def _contact_names(case: Case) -> list[str]:
 
 
 def _contact(contact: ContactSpec, name: str, several: bool) -> Call:
-    """``[[contact]] type = "plane"``: :class:`~hyperfem.contact.PlaneContact` bound to the problem."""
-    kwargs: dict[str, object] = {"point": contact.point, "normal": contact.normal}
+    """``[[contact]]``: :class:`~hyperfem.contact.PlaneContact` (``type = "plane"``) or
+    :class:`~hyperfem.contact.SphereContact` (``"sphere"``) bound to the problem."""
+    sphere = contact.type == "sphere"
+    kwargs: dict[str, object] = (
+        {"center": contact.center, "radius": contact.radius}
+        if sphere
+        else {"point": contact.point, "normal": contact.normal}
+    )
     for key in ("dhat", "stiffness", "motion"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
@@ -446,7 +452,8 @@ def _contact(contact: ContactSpec, name: str, several: bool) -> Call:
         kwargs["profile"] = profile
     if several:
         kwargs["name"] = name  # the output columns: contact_0_force, ...
-    return Call.of(Attr(Call.of(PlaneContact, contact.boundary, **kwargs), "bind"), Ref("problem"))
+    obstacle = SphereContact if sphere else PlaneContact
+    return Call.of(Attr(Call.of(obstacle, contact.boundary, **kwargs), "bind"), Ref("problem"))
 
 
 def _contacts(case: Case) -> list[Statement]:

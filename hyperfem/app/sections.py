@@ -232,16 +232,16 @@ BCS = {
 
 _CONTACT_COMMON = {
     "type": Key("string", required=True, choices=CONTACT_TYPES, example="plane",
-                help="plane: a rigid half-space (hyperfem.contact.PlaneContact)"),
+                help="plane: a rigid half-space (hyperfem.contact.PlaneContact); sphere: a rigid ball, an indenter "
+                "or spherical tool (hyperfem.contact.SphereContact)"),
     "boundary": Key("string", required=True, example="bottom",
                     help="facet group of the mesh whose nodes may touch the obstacle"),
 }
-CONTACTS = {
-    "plane": {
-        "point": Key("numbers", required=True, example=(0.0, 0.0, 0.0),
-                     help="a point of the plane in m (where it is at profile 0)"),
-        "normal": Key("numbers", required=True, example=(0.0, 0.0, 1.0),
-                      help="the plane's normal, pointing to the body's side (any length > 0)"),
+
+
+def _barrier_keys(obstacle: str) -> dict[str, Key]:
+    """The keys of every obstacle: the barrier's width and stiffness, the motion, friction."""
+    return {
         "dhat": Key("number", above=0.0, example=0.001,
                     help="barrier width in m: the distance below which contact forces act; default 1 % of the "
                     "mean facet size of the boundary"),
@@ -249,10 +249,26 @@ CONTACTS = {
                          help="barrier stiffness kappa; default the mean normal diagonal of the elastic tangent at "
                          "the contact nodes"),
         "motion": Key("numbers", example=(0.0, 0.0, 0.1),
-                      help="translation of the plane in m at f = 1 (a moving tool); default none"),
+                      help=f"translation of the {obstacle} in m at f = 1 (a moving tool); default none"),
         "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
         "friction": Key("number", minimum=0.0, maximum=0.0, default=0.0,
                         help="Coulomb coefficient; only 0 (frictionless) in this version"),
+    }
+
+
+CONTACTS = {
+    "plane": {
+        "point": Key("numbers", required=True, example=(0.0, 0.0, 0.0),
+                     help="a point of the plane in m (where it is at profile 0)"),
+        "normal": Key("numbers", required=True, example=(0.0, 0.0, 1.0),
+                      help="the plane's normal, pointing to the body's side (any length > 0)"),
+        **_barrier_keys("plane"),
+    },
+    "sphere": {
+        "center": Key("numbers", required=True, example=(0.5, 0.5, 1.3),
+                      help="the sphere's centre in m (where it is at profile 0); the body stays outside it"),
+        "radius": Key("number", required=True, above=0.0, example=0.3, help="the sphere's radius in m"),
+        **_barrier_keys("sphere"),
     },
 }
 
@@ -921,20 +937,23 @@ def _contact(index: int, table: Mapping) -> ContactSpec:
             f"{where}.friction: friction is not available yet (contact is frictionless in this version); "
             "give 0 or leave it out"
         )
-    if not any(values["normal"]):
+    anchor = "point" if kind == "plane" else "center"
+    if kind == "plane" and not any(values["normal"]):
         raise CaseFileError(f"{where}.normal: must not be zero, got {list(values['normal'])}")
     for name in ("normal", "motion"):
-        if name in values and len(values[name]) != len(values["point"]):
+        if name in values and len(values[name]) != len(values[anchor]):
             raise CaseFileError(
-                f"{where}.{name}: {len(values[name])} components for a point of {len(values['point'])}"
+                f"{where}.{name}: {len(values[name])} components for a {anchor} of {len(values[anchor])}"
             )
     profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
     return ContactSpec(
         key=where,
         type=kind,
         boundary=values["boundary"],
-        point=values["point"],
-        normal=values["normal"],
+        point=values.get("point"),
+        normal=values.get("normal"),
+        center=values.get("center"),
+        radius=values.get("radius"),
         dhat=values.get("dhat"),
         stiffness=values.get("stiffness"),
         motion=values.get("motion"),

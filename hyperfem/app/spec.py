@@ -55,7 +55,7 @@ SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
 FIBRE_TYPES = ("laplace", "constant", "file")
 REPRESENTATIONS = ("DG0", "P1", "quadrature")
 BC_TYPES = ("clamp", "displacement", "rotation")
-CONTACT_TYPES = ("plane",)
+CONTACT_TYPES = ("plane", "sphere")
 LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
 PROFILE_TYPES = ("linear", "steady", "ramp", "table")
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -201,25 +201,30 @@ class ContactSpec:
 
     Attributes:
         key: Key path (``"contact[0]"``).
-        type: One of :data:`CONTACT_TYPES` (``"plane"``: :class:`~hyperfem.contact.PlaneContact`).
+        type: One of :data:`CONTACT_TYPES` (``"plane"``: :class:`~hyperfem.contact.PlaneContact`,
+            ``"sphere"``: :class:`~hyperfem.contact.SphereContact`).
         boundary: Facet group whose nodes may touch.
-        point: A point of the plane (at profile 0).
-        normal: The plane's normal, pointing to the body's side.
+        point: A point of the plane (at profile 0); ``None`` for a sphere.
+        normal: The plane's normal, pointing to the body's side; ``None`` for a sphere.
         dhat: Barrier width, or ``None`` (the library default).
         stiffness: Barrier stiffness, or ``None`` (the library default).
-        motion: Translation of the plane at profile 1, or ``None`` (it stays).
+        motion: Translation of the obstacle at profile 1, or ``None`` (it stays).
         profile: Time profile of the motion, or ``None`` (linear).
+        center: The sphere's centre (at profile 0); ``None`` for a plane.
+        radius: The sphere's radius; ``None`` for a plane.
     """
 
     key: str
     type: str
     boundary: str
-    point: tuple[float, ...]
-    normal: tuple[float, ...]
+    point: tuple[float, ...] | None = None
+    normal: tuple[float, ...] | None = None
     dhat: float | None = None
     stiffness: float | None = None
     motion: tuple[float, ...] | None = None
     profile: Profile | None = None
+    center: tuple[float, ...] | None = None
+    radius: float | None = None
 
 
 @dataclass(frozen=True)
