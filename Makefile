@@ -79,6 +79,7 @@ demos: bootstrap
 	$(PY) demos/muscle_dynamics.py
 	$(PY) demos/methods.py --case bend --t-end 0.1
 	$(PY) demos/realtime.py --steps 90
+	$(PY) demos/contact.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)

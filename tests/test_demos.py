@@ -167,3 +167,21 @@ def test_dynamics_demo_prints_a_short_table(shared_tmp, capsys):
         assert "{" not in out and len(out.splitlines()) <= 10
         assert "energy drift (total = kinetic + elastic - external work)" in out
         assert f"output: {shared_tmp / 'bend' / 'diagnostics.csv'}, {shared_tmp / 'bend' / 'summary.json'}" in out
+
+
+def test_contact_demo(shared_tmp, capsys):
+    """The contact demo (issue 19): the plane's force = the uniaxial closed form to 0.1 % = -(reaction of the pushed
+    face); the sphere's force ~ depth^1.5 and near Hertz; never penetrating; the same numbers on 1 and 2 ranks."""
+    pytest.importorskip("ipctk")
+    summary = load_demo("contact").main(["--output", str(shared_tmp)])
+    plane, sphere = summary["plane"], summary["sphere"]
+    assert summary["completed"] and summary["ranks"] == MPI.COMM_WORLD.size
+    assert plane["relative_error"] < 1e-3 and plane["force"] == pytest.approx(-plane["reaction_top"], rel=1e-9)
+    assert plane["force"] == pytest.approx(0.239321245636, rel=1e-9)
+    assert sphere["forces"] == pytest.approx([3.38087546751e-4, 9.14701109594e-4], rel=1e-8)
+    assert sphere["exponent"] == pytest.approx(1.5, abs=0.1) and all(1.0 < r < 1.35 for r in sphere["ratio_to_hertz"])
+    assert plane["min_distance"] > 0.0 and sphere["min_distance"] > 0.0
+    assert json.loads((shared_tmp / "contact.json").read_text())["plane"]["force"] == plane["force"]
+    if MPI.COMM_WORLD.rank == 0:
+        assert "closed form 0.239337 (0.007 %)" in capsys.readouterr().out
+
