@@ -59,7 +59,7 @@ $(STAMP): pyproject.toml Makefile
 	else \
 	  "$(PY)" -m pip install -q -e ".[wheel,mesh,test,plot,lint]" >"$(VENV)/bootstrap.log" 2>&1 || { cat "$(VENV)/bootstrap.log"; exit 1; }; \
 	fi; \
-	"$(PY)" -c "import ipctk" >/dev/null 2>&1 || "$(PY)" -m pip install -q ipctk >/dev/null 2>&1 \
+	"$(PY)" -c "import ipctk" >/dev/null 2>&1 || "$(PY)" -m pip install -q "ipctk>=1.6,<1.7" >/dev/null 2>&1 \
 	  || echo "bootstrap: ipctk not available: contact tests skip"; \
 	"$(PY)" -c "$$has_dolfinx" || { echo "bootstrap: error: DOLFINx >= 0.10 not importable in $(VENV)" >&2; exit 1; }; \
 	touch "$(STAMP)"; \
