@@ -393,3 +393,5 @@ def test_explicit_stage_takes_no_solver(comm):
         dyn.ExplicitStage(explicit, hf.NewtonSolver(explicit.base))
     with pytest.raises(hf.ParameterError, match="solve_initial needs a solver"):
         Simulation(explicit, None, dyn.TimeStepping(dt=0.004, t_end=0.008), stage=dyn.ExplicitStage, solve_initial=True)
+    with pytest.raises(hf.ParameterError, match="no solver and no stage: .* stage=hyperfem.dynamics.ExplicitStage"):
+        Simulation(explicit, None, dyn.TimeStepping(dt=0.004, t_end=0.008))

@@ -293,6 +293,8 @@ def load_checkpoint(sim: Simulation, path: str | Path) -> dict:
         sim.problem.set_time(t)
     if sim.solver is not None:  # the explicit scheme runs its hooks before every force assembly
         sim.solver.refresh()  # state hooks (e.g. a material's rotation field) at the loaded state
+        if sim.solver.external:  # contact pulls a penetrating start guess back towards the loaded state
+            sim.solver.external.remember()
     return meta
 
 

@@ -282,6 +282,9 @@ class DirichletReactions:
         shared: How a dof that several boundaries hold is shared between them:
             ``"traction"`` (default: each its own traction, from the stress) or
             ``"nodal"`` (the whole nodal force to each); module docstring.
+        external: The gradient of energies from outside UFL (contact) at every dof of this rank,
+            added to the residual (``NewtonSolver.external.gradient_array``): a contact node
+            with a fixed component pushes on its support.
 
     Raises:
         ParameterError: A named boundary has no Dirichlet condition, a point
@@ -297,9 +300,11 @@ class DirichletReactions:
         total: bool = True,
         state_hooks: Sequence[Callable[[], None]] = (),
         shared: str = "traction",
+        external: Callable[[], np.ndarray] | None = None,
     ) -> None:
         if shared not in SHARED:
             raise ParameterError(f"DirichletReactions: shared must be one of {', '.join(SHARED)}, got {shared!r}")
+        self._external = external
         base = problem.base if isinstance(problem, TimeStepState) else problem
         self.problem = problem
         self.shared = shared
@@ -456,6 +461,8 @@ class DirichletReactions:
             vec.scatter_reverse(la.InsertMode.add)
             out = vec.array.copy() if out is None else out + vec.array
         assert out is not None  # the residual form is always there
+        if self._external is not None:  # energies from outside UFL (contact) act on the supports too
+            out = out + self._external()
         return out
 
     def shares(self, r: np.ndarray | None = None) -> dict[str, np.ndarray]:
@@ -549,13 +556,16 @@ class Reactions(Output):
 
     def start(self, sim: Simulation) -> None:
         """Find the constrained dofs and compile the forms."""
+        external = None
         if sim.solver is not None:
             hooks = [*sim.solver.state_hooks]
+            external = sim.solver.external.gradient_array if sim.solver.external else None
         else:  # a problem that steps itself (explicit): the hooks of the body's energies
             base = sim.fields.base
             hooks = [*base.state_hooks] if isinstance(base, StateHookedProblem) else []
         self.reactions = DirichletReactions(
-            sim.problem, self.boundaries, points=self.points, total=self.total, state_hooks=hooks, shared=self.shared
+            sim.problem, self.boundaries, points=self.points, total=self.total, state_hooks=hooks, shared=self.shared,
+            external=external,
         )
 
     def restart(self, sim: Simulation, state: dict | None) -> None:

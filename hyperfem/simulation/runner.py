@@ -238,6 +238,11 @@ class Simulation:
     ) -> None:
         if solver is None and solve_initial:
             raise ParameterError(f"{name}: solve_initial needs a solver (the problem steps itself)")
+        if solver is None and stage is None:
+            raise ParameterError(
+                f"{name}: no solver and no stage: the default stages solve with a NewtonSolver; a problem that "
+                "steps itself needs its stage (e.g. stage=hyperfem.dynamics.ExplicitStage for ExplicitDynamics)"
+            )
         self.problem = problem
         self.solver = solver
         if stage is None:

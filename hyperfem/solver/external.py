@@ -134,6 +134,19 @@ class ExternalTerms:
         local = sum((float(e.energy(self.u.x.array)) for e in self.energies), 0.0)
         return float(self.comm.allreduce(local, op=MPI.SUM))
 
+    def gradient_array(self) -> np.ndarray:
+        """The gradients at the current state as one array like the unknown's (this rank's rows; Dirichlet rows too).
+
+        What the energies add to the residual of every dof, the constrained ones
+        included: the reactions of the supports need it there (a contact node
+        with a fixed component pushes on its support).
+        """
+        out = np.zeros_like(self.u.x.array)
+        for energy in self.energies:
+            dofs, values = energy.gradient(self.u.x.array)
+            np.add.at(out, dofs.ravel(), values.ravel())
+        return out
+
     def add_residual(self, b: PETSc.Vec) -> None:
         """Add the gradients at the current state to the assembled residual ``b``, Dirichlet rows excepted."""
         for energy in self.energies:
