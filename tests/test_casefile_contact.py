@@ -156,6 +156,17 @@ def test_contact_in_a_dynamic_run(shared_tmp):
     assert all(np.isfinite(row["kinetic_energy"]) for row in rows)
 
 
+def test_moving_obstacle_with_generalized_alpha_is_refused():
+    """The barrier is evaluated at the end of the step but the obstacle moves to the alpha time: refused."""
+    over = ["material[0].density=1000.0", "contact[0].motion=[0.0, 0.0, 0.01]",
+            'stepping={type = "dynamic", scheme = "generalized_alpha", dt = 0.05, t_end = 0.2}']
+    with pytest.raises(CaseFileError) as info:
+        load_case(CASE, over)
+    assert 'contact[0].motion: a moving obstacle with scheme "generalized_alpha" is not available yet' in str(
+        info.value
+    )
+
+
 def test_unknown_contact_boundary_lists_the_groups():
     case = load_case(CASE, ["contact[0].boundary=botom"])
     with pytest.raises(CaseFileError) as info:
