@@ -473,8 +473,10 @@ def _solver(case: Case) -> list[Statement]:
         kwargs["external_energies"] = [Ref(n) for n in _contact_names(case)]
     out = [Statement("solver", "solver", Call.of(NewtonSolver, *args, **kwargs))]
     if st.dynamic and st.initial_acceleration and st.scheme != "quasi_static":
-        out.append(Statement("stepping.initial_acceleration", None, Call.of(Attr(Ref("problem"),
-                                                                                 "initial_acceleration"))))
+        # contact pushes a body that starts within reach of an obstacle from the start
+        external = {"external": Attr(Attr(Ref("solver"), "external"), "gradient_array")} if case.contacts else {}
+        start = Call.of(Attr(Ref("problem"), "initial_acceleration"), **external)
+        out.append(Statement("stepping.initial_acceleration", None, start))
     return out
 
 

@@ -34,6 +34,8 @@ forms are compiled once.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import ufl
 from mpi4py import MPI
@@ -412,12 +414,17 @@ class IncrementalProblem:
         return self.u.x.array.copy(), self.v.x.array.copy(), self.a.x.array.copy()
 
     # -- initial state ---------------------------------------------------------
-    def initial_acceleration(self) -> None:
+    def initial_acceleration(self, external: Callable[[], np.ndarray] | None = None) -> None:
         r"""Solve :math:`M a_0 = f_\text{ext}(t_0) - f_\text{int}(w_0) - C v_0` (zero on Dirichlet dofs).
 
         The system lives on the collapsed displacement space: the rows of the
         base residual tested with displacement directions (pressure and volume
         have no acceleration).
+
+        Args:
+            external: The gradient of energies from outside UFL at the current state, one entry per
+                dof of the state on this rank (``NewtonSolver(...).external.gradient_array``): a body
+                that starts within reach of an obstacle's barrier is pushed by it from the start.
 
         Raises:
             SolverError: If the mass solve fails.
@@ -443,17 +450,23 @@ class IncrementalProblem:
                     base.energy_internal, self.u, block.embed(disp(self.v)), block.embed(test)
                 )
         rhs = unify_cell_quadrature(rhs, self._unified_md)
+        gradient = None if external is None else external()
         if block.whole:
             M = fpetsc.assemble_matrix(fem.form(m), bcs=base.bcs)
             M.assemble()
             b = fpetsc.assemble_vector(fem.form(rhs))
             b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # int enums
+            if gradient is not None:
+                b.array_w[:] -= gradient[: len(b.array_r)]
             fpetsc.set_bc(b, base.bcs, alpha=0.0)
         else:
             M = fpetsc.assemble_matrix(fem.form(m))
             M.assemble()
             b = fpetsc.assemble_vector(fem.form(rhs))
             b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # int enums
+            if gradient is not None:
+                assert block.dofs is not None  # the displacement is a block of the state here
+                b.array_w[:] -= gradient[block.dofs[: len(b.array_r)]]
             local, rows = self._constrained_rows()
             M.zeroRowsColumns(rows, diag=1.0)
             b.array_w[local] = 0.0
