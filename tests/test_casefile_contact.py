@@ -81,7 +81,8 @@ def test_block_on_plane_matches_the_closed_form_and_the_reaction(shared_tmp):
 @pytest.mark.parametrize(
     "change, expected",
     [
-        ({"friction": 0.3}, "contact[0].friction: friction is not available yet"),
+        ({"friction": -0.3}, "contact[0].friction: must be >= 0"),
+        ({"friction_epsilon": 0.0}, "contact[0].friction_epsilon: must be > 0"),
         ({"normal": [0.0, 0.0, 0.0]}, "contact[0].normal: must not be zero"),
         ({"dhat": -1.0}, "contact[0].dhat: must be > 0, got -1.0"),
         ({"motion": [0.0, 1.0]}, "contact[0].motion: 2 components for a point of 3"),
@@ -235,3 +236,20 @@ def test_reactions_balance_the_contact_force_where_contact_nodes_are_held(shared
     total = np.array([row["reaction_total_Fx"], row["reaction_total_Fy"], row["reaction_total_Fz"]])
     assert abs(force[1]) > 1e4  # the held component carries a real part of the contact force
     np.testing.assert_allclose(total, -force, rtol=1e-8, atol=1e-6 * np.abs(force).max())
+
+
+def test_friction_key_reaches_the_contact(shared_tmp):
+    """``friction`` and ``friction_epsilon`` in [[contact]] go to PlaneContact (the script shows them)."""
+    import tomllib
+
+    from hyperfem.app.casefile import check_case
+
+    data = tomllib.loads(CASE.read_text())
+    data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+    data["contact"][0].update({"friction": 0.3, "friction_epsilon": 1e-4})
+    case = check_case(data, shared_tmp / "rough.toml")
+    (contact,) = case.contacts
+    assert (contact.friction, contact.friction_epsilon) == (0.3, 1e-4)
+    text = script(case)
+    assert "friction=0.3," in text and "friction_epsilon=0.0001" in text
+    compile(text, "rough.py", "exec")

@@ -646,3 +646,133 @@ def test_benchmark_smoke():
     row = json.loads(out.stdout.strip().splitlines()[-1])
     assert row["contact_nodes"] == 16 and row["closed_form_relative_error"] < 1e-3 and row["min_distance"] > 0.0
     assert row["contact_s"] > 0.0 and row["iterations_contact"] >= row["iterations_roller"]
+
+
+# -- friction (smoothed Coulomb, lagged per step as in IPC) -----------------------------------------------------------
+
+MU = 0.5
+
+
+def _on_rough_plane(comm, mode: str, ratio: float = 0.0, n: int = 2, delta: float = 0.05):
+    """A cube pressed on a plane with friction MU (top: z prescribed, t in [0, 1]), then pushed along x (t in [1, 2]).
+
+    ``mode="traction"``: a dead traction on the top of total ``ratio * MU * N`` (N: the normal force at t = 1);
+    ``"displacement"``: the top moved 0.2 along x. No roller: only friction holds the body tangentially.
+    Returns ``(problem, contact, N, T, slips)``: ``slips`` the largest x-slip of a contact node in each step of
+    the push, over all ranks.
+    """
+    scale = [0.0]
+    bcs = [hf.PrescribedDisplacement("top", [-delta], components=[2], profile=Ramp(1.0))]
+    loads = []
+    if mode == "traction":
+        loads = [hf.DeadTraction("top", (1.0, 0.0, 0.0), profile=lambda t: scale[0] * min(max(t - 1.0, 0.0), 1.0))]
+    else:
+        bcs.append(hf.PrescribedDisplacement("top", [0.2], components=[0], profile=Ramp(2.0, t0=1.0)))
+    mesh = dmesh.create_unit_cube(comm, n, n, n)
+    groups = {"bottom": lambda x: np.isclose(x[2], 0.0), "top": lambda x: np.isclose(x[2], 1.0)}
+    domain = hf.Domain.from_locators(mesh, groups, source=f"cube({n})")
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs, loads=loads)
+    contact = _plane(friction=MU).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact], check_rigid_motion=False)
+    iterates = _watch(solver, contact)
+    stepping = hf.LoadStepping(initial_increment=0.25, max_increment=0.25)
+    hf.solve_quasistatic(solver, 1.0, stepping=stepping)
+    N = float(contact.force()[2])
+    scale[0] = ratio * MU * N
+    slips: list[float] = []
+    last = [contact.nodes.positions(problem.u.x.array)[:, 0].copy()]
+
+    def slip(_record) -> None:
+        x = contact.nodes.positions(problem.u.x.array)[:, 0]
+        local = float(np.abs(x - last[0]).max()) if len(x) else 0.0
+        slips.append(comm.allreduce(local, op=MPI.MAX))
+        last[0] = x.copy()
+
+    hf.solve_quasistatic(solver, 2.0, stepping=stepping, on_step=slip)
+    assert iterates and min(iterates) > 0.0
+    return problem, contact, N, scale[0], slips
+
+
+def test_friction_taylor_with_the_lag_fixed():
+    """D, its gradient and Hessian (lag fixed) against finite differences: errors O(eps^2), O(eps^3); PSD blocks."""
+    problem = _block(n=2)
+    contact = _plane(dhat=1e-2, stiffness=0.5, friction=0.4, friction_epsilon=1e-3).bind(problem)
+    comm = problem.domain.comm
+    rng = np.random.default_rng(comm.rank)
+    contact.lag(problem.u.x.array)
+    contact.update(0.0)  # the lag taken comes into use
+    for size in (1e-4, 3e-2):  # slips within epsilon (the smoothed part) and beyond it, none crossing it
+        u = size * rng.standard_normal(problem.u.x.array.size)
+        du = 0.1 * size * rng.standard_normal(u.size)  # steps small against the slips (|w|^3 is not smooth at 0)
+        dofs, g = contact.friction_gradient(u)
+        hdofs, blocks = contact.friction_hessian(u)
+        assert comm.allreduce(len(dofs), op=MPI.SUM) == contact.nodes.total
+        if len(blocks):
+            assert np.linalg.eigvalsh(blocks).min() > -1e-10 * np.abs(blocks).max()
+        G = np.zeros(u.size)
+        np.add.at(G, dofs.ravel(), g.ravel())
+        Hdu = np.zeros(u.size)
+        np.add.at(Hdu, hdofs.ravel(), np.einsum("mij,mj->mi", blocks, du[hdofs]).ravel())
+
+        def total(values):
+            return comm.allreduce(contact.friction_energy(values), op=MPI.SUM)
+
+        E0, first, second = total(u), [], []
+        dot = comm.allreduce(float(G @ du), op=MPI.SUM)
+        quad = comm.allreduce(float(du @ Hdu), op=MPI.SUM)
+        for eps in (1e-1, 1e-2, 1e-3):
+            E1 = total(u + eps * du)
+            first.append(abs(E1 - E0 - eps * dot))
+            second.append(abs(E1 - E0 - eps * dot - 0.5 * eps**2 * quad))
+        assert first[2] / first[1] == pytest.approx(1e-2, rel=0.05)  # O(eps^2)
+        assert second[1] / second[0] < 2e-3  # O(eps^3); the next one is at round-off
+
+
+def test_friction_sticks_below_mu_n():
+    """T = 0.5 mu N: the friction force balances T to 1e-8; each step slips < epsilon (the lag's elastic stick)."""
+    problem, contact, N, T, slips = _on_rough_plane(MPI.COMM_WORLD, "traction", 0.5)
+    friction = contact.friction_force()
+    assert friction[0] == pytest.approx(-T, rel=1e-8) and abs(friction[1]) < 1e-10 * T
+    assert max(slips) < contact.friction_epsilon
+    assert contact.record()["contact_friction_force"] == pytest.approx(list(friction), abs=1e-14)
+
+
+def test_friction_slides_at_mu_n():
+    """The top dragged 0.2 along x: the nodes slide (slip >> epsilon) and the friction force is mu N (0.5 %)."""
+    problem, contact, N, _, slips = _on_rough_plane(MPI.COMM_WORLD, "displacement")
+    assert sum(slips) > 500 * contact.friction_epsilon
+    friction = contact.friction_force()
+    assert -friction[0] == pytest.approx(MU * contact.force()[2], rel=5e-3)
+
+
+def test_friction_above_mu_n_has_no_stick():
+    """T = 1.5 mu N: no quasi-static equilibrium; the block does not stick (it runs away or the step fails)."""
+    try:
+        _, contact, _, _, slips = _on_rough_plane(MPI.COMM_WORLD, "traction", 1.5)
+    except hf.ConvergenceError:
+        return
+    assert max(slips) > 1e3 * contact.friction_epsilon
+
+
+def _stick_state(comm) -> list[float]:
+    problem, contact, _, _, _ = _on_rough_plane(comm, "traction", 0.5)
+    return [*contact.friction_force(), *contact.force(), float(problem.u.x.petsc_vec.norm())]
+
+
+def test_friction_one_rank_equals_two_ranks():
+    """The stick case on 2 ranks equals 1 rank to 1e-10 (friction force, normal force, displacement norm)."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    pc_setup_seconds()
+    one = _stick_state(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    two = _stick_state(comm)
+    assert two == pytest.approx(one, rel=1e-10, abs=1e-14)
+
+
+def test_friction_bad_input_is_one_line():
+    with pytest.raises(ParameterError, match="friction must be a number >= 0"):
+        _plane(friction=-0.1)
+    with pytest.raises(ParameterError, match="friction_epsilon"):
+        _plane(friction=0.1, friction_epsilon=0.0)

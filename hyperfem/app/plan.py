@@ -447,6 +447,10 @@ def _contact(contact: ContactSpec, name: str, several: bool) -> Call:
     for key in ("dhat", "stiffness", "motion"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
+    if contact.friction > 0.0:
+        kwargs["friction"] = contact.friction
+        if contact.friction_epsilon is not None:
+            kwargs["friction_epsilon"] = contact.friction_epsilon
     profile = _profile(contact.profile)
     if profile is not None:
         kwargs["profile"] = profile

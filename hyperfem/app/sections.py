@@ -90,7 +90,7 @@ TOP = {
     "fibres": Key("table", help="fibre directions, needed by law \"muscle\" (hf.fibres); its keys depend on type"),
     "bc": Key("tables", help="Dirichlet conditions, one [[bc]] each; its keys depend on type"),
     "load": Key("tables", help="loads, one [[load]] each; its keys depend on type"),
-    "contact": Key("tables", help="contact with obstacles, one [[contact]] each (frictionless, intersection-free: "
+    "contact": Key("tables", help="contact with obstacles, one [[contact]] each (intersection-free, optional friction: "
                    "hyperfem.contact; needs pip install 'hyperfem[contact]'); its keys depend on type"),
     "stepping": Key("table", help="a load ramp (type = \"quasi-static\", the default) or a time integration "
                     "(type = \"dynamic\"); its keys depend on type"),
@@ -251,8 +251,11 @@ def _barrier_keys(obstacle: str) -> dict[str, Key]:
         "motion": Key("numbers", example=(0.0, 0.0, 0.1),
                       help=f"translation of the {obstacle} in m at f = 1 (a moving tool); default none"),
         "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
-        "friction": Key("number", minimum=0.0, maximum=0.0, default=0.0,
-                        help="Coulomb coefficient; only 0 (frictionless) in this version"),
+        "friction": Key("number", minimum=0.0, default=0.0,
+                        help="Coulomb coefficient mu >= 0 (0: frictionless); smoothed and lagged per step as in IPC"),
+        "friction_epsilon": Key("number", above=0.0, example=1.0e-4,
+                                help="friction's slip length in m below which a node sticks elastically; "
+                                "default 0.1 dhat"),
     }
 
 
@@ -932,11 +935,6 @@ def _contact(index: int, table: Mapping) -> ContactSpec:
         raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(CONTACT_TYPES)})")
     kind = check_value(table["type"], _CONTACT_COMMON["type"], join(where, "type"))
     values = check_table(table, {**_CONTACT_COMMON, **CONTACTS[kind]}, where, what=f"a contact of type {kind!r}")
-    if values.get("friction", 0.0) > 0.0:
-        raise CaseFileError(
-            f"{where}.friction: friction is not available yet (contact is frictionless in this version); "
-            "give 0 or leave it out"
-        )
     anchor = "point" if kind == "plane" else "center"
     if kind == "plane" and not any(values["normal"]):
         raise CaseFileError(f"{where}.normal: must not be zero, got {list(values['normal'])}")
@@ -958,6 +956,8 @@ def _contact(index: int, table: Mapping) -> ContactSpec:
         stiffness=values.get("stiffness"),
         motion=values.get("motion"),
         profile=profile,
+        friction=values.get("friction", 0.0),
+        friction_epsilon=values.get("friction_epsilon"),
     )
 
 

@@ -197,7 +197,7 @@ class LoadSpec:
 
 @dataclass(frozen=True)
 class ContactSpec:
-    """One ``[[contact]]``: a boundary that may touch an obstacle (frictionless, intersection-free).
+    """One ``[[contact]]``: a boundary that may touch an obstacle (intersection-free, optional friction).
 
     Attributes:
         key: Key path (``"contact[0]"``).
@@ -212,6 +212,8 @@ class ContactSpec:
         profile: Time profile of the motion, or ``None`` (linear).
         center: The sphere's centre (at profile 0); ``None`` for a plane.
         radius: The sphere's radius; ``None`` for a plane.
+        friction: Coulomb coefficient (0: frictionless).
+        friction_epsilon: Friction's slip length, or ``None`` (the library default).
     """
 
     key: str
@@ -225,6 +227,8 @@ class ContactSpec:
     profile: Profile | None = None
     center: tuple[float, ...] | None = None
     radius: float | None = None
+    friction: float = 0.0
+    friction_epsilon: float | None = None
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,39 @@ energy, the admissibility check (a node on or through the obstacle), the
 start check at binding, and the outputs (the force the obstacle exerts,
 :math:`-\sum_a \kappa b'(d_a)\nabla d_a`, the active nodes, the smallest
 distance). A subclass gives :meth:`~NodalBarrier.distances`,
-:meth:`~NodalBarrier.gradient`, :meth:`~NodalBarrier.hessian` and
+:meth:`~NodalBarrier.normals`, ``_barrier_gradient``, ``_barrier_hessian`` and
 :meth:`~NodalBarrier.update`, and a ``step_filter``.
+
+**Friction** (Coulomb, smoothed and lagged as in IPC, Li et al. 2020 §5; the
+contact's ``friction`` :math:`\mu > 0`): the dissipative potential
+
+.. math::
+    D(u) = \mu \sum_a \lambda_a\, f_0\bigl(\lVert P_a (x_a - x_a^n)\rVert\bigr), \qquad
+    f_0(y) = \begin{cases} -\dfrac{y^3}{3\epsilon^2} + \dfrac{y^2}{\epsilon} + \dfrac{\epsilon}{3} & y < \epsilon \\
+    y & y \ge \epsilon \end{cases}
+
+is added to the energy, gradient and Hessian. Lagged (fixed within a step,
+taken at the step's start state :math:`x^n`, :meth:`NodalBarrier.lag`): the
+normal force magnitudes :math:`\lambda_a = \kappa|b'(d_a(x^n))|`, the
+tangent projectors :math:`P_a = I - n_a n_a^T` (:math:`\lVert T_a^T v\rVert =
+\lVert P_a v\rVert` for an orthonormal tangent basis :math:`T_a`) and
+:math:`x^n` itself, so :math:`D` is a conservative potential within the
+step. :math:`\epsilon` (``friction_epsilon``, a slip length: quasi-static
+IPC's :math:`\epsilon_v\,\Delta t`) is the slip below which the node sticks
+elastically. With :math:`w = P_a\Delta_a`, :math:`y = \lVert w\rVert` and
+:math:`g(y) = f_0'(y)/y` (:math:`2/\epsilon - y/\epsilon^2`, or :math:`1/y`),
+the gradient is :math:`\mu\lambda_a g\,w` and the Hessian
+:math:`\mu\lambda_a(g P_a + g'(y)/y\; w w^T)`, whose eigenvalues in the tangent
+plane are :math:`\mu\lambda_a g > 0` and :math:`\mu\lambda_a f_0''(y) =
+\mu\lambda_a\max(2/\epsilon - 2y/\epsilon^2, 0) \ge 0`: it is positive
+semi-definite as it stands (the closed form of IPC's projection), no
+clipping is needed. Written with numpy rather than ipctk's
+``TangentialCollisions`` (which needs ipctk collision sets of mesh
+primitives; for an analytic obstacle the per-node formulas are a few lines,
+run on each rank's owned nodes, with no gathering). The lag is refreshed by
+:meth:`~hyperfem.solver.external.ExternalTerms.remember`, i.e. after every
+converged solve (an accepted step), at construction and at a restart; a
+solve that failed and is cut back leaves it at the last accepted state.
 """
 
 from __future__ import annotations
@@ -57,13 +88,115 @@ class NodalBarrier:
         """Signed distances :math:`d_a` of the owned nodes for the unknown's local array ``u``."""
         raise NotImplementedError
 
-    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def normals(self, u: np.ndarray) -> np.ndarray:
+        r"""The unit normals :math:`\nabla d_a` of the owned nodes, shape ``(n, dim)``."""
+        raise NotImplementedError
+
+    def _barrier_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`\kappa b'(d_a)\nabla d_a` at the active nodes: ``(dofs, values)`` of shape ``(m, dim)``."""
         raise NotImplementedError
 
+    def _barrier_hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    mu: float = 0.0
+    r"""The Coulomb coefficient :math:`\mu` (0: frictionless)."""
+    friction_epsilon: float = 0.0
+    r"""The smoothing slip :math:`\epsilon` of :math:`f_0`."""
+    _lagged: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    _pending: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def _init_friction(self, contact: Any) -> None:
+        r"""Set :math:`\mu` and :math:`\epsilon` from the contact (after ``dhat``)."""
+        self.mu = float(getattr(contact, "friction", 0.0))
+        eps = getattr(contact, "friction_epsilon", None)
+        self.friction_epsilon = float(eps) if eps is not None else 0.1 * self.dhat
+        self._lagged = self._pending = None
+
+    def _refresh_lag(self) -> None:
+        """Make the lag taken by :meth:`lag` the one in use (``update(t)``, at the start of a solve, calls it)."""
+        if self._pending is not None:
+            self._lagged, self._pending = self._pending, None
+
+    def lag(self, u: np.ndarray) -> None:
+        r"""Take the friction's lagged :math:`\lambda_a`, :math:`P_a`, :math:`x_a^n` at the state ``u`` (module doc).
+
+        They come into use at the next ``update(t)`` (the start of the next
+        solve): until then the energy, gradient and :meth:`friction_force`
+        stay those of the step just solved (its outputs and reactions).
+        """
+        if self.mu <= 0.0:
+            return
+        d = self.distances(u)
+        lam = np.zeros(len(d))
+        rows = np.flatnonzero((d < self.dhat) & (d > 0.0))
+        lam[rows] = self.stiffness * np.abs(barrier_derivatives(d[rows], self.dhat)[0])
+        n = self.normals(u)
+        P = np.eye(n.shape[1])[None, :, :] - np.einsum("mi,mj->mij", n, n)
+        self._pending = (lam, P, self.nodes.positions(u).copy())
+
+    def _slips(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        r"""Rows with :math:`\lambda_a > 0`, their :math:`\mu\lambda_a`, tangential slips :math:`w` and :math:`|w|`."""
+        assert self._lagged is not None
+        lam, P, x0 = self._lagged
+        rows = np.flatnonzero(lam > 0.0)
+        w = np.einsum("mij,mj->mi", P[rows], self.nodes.positions(u)[rows] - x0[rows])
+        return rows, self.mu * lam[rows], w, np.linalg.norm(w, axis=1)
+
+    def friction_energy(self, u: np.ndarray) -> float:
+        r"""This rank's :math:`D(u) = \mu\sum_a\lambda_a f_0(|w_a|)` (0 when frictionless or not lagged yet)."""
+        if self.mu <= 0.0 or self._lagged is None:
+            return 0.0
+        _, ml, _, y = self._slips(u)
+        e = self.friction_epsilon
+        f0 = np.where(y < e, -(y**3) / (3 * e * e) + y * y / e + e / 3, y)
+        return float((ml * f0).sum())
+
+    def friction_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`\mu\lambda_a g(|w_a|)\,w_a` at the lagged contact nodes: ``(dofs, values)``."""
+        if self.mu <= 0.0 or self._lagged is None:
+            return self.nodes.dofs[:0], np.zeros((0, self.nodes.X.shape[1]))
+        rows, ml, w, y = self._slips(u)
+        e = self.friction_epsilon
+        g = np.where(y < e, 2.0 / e - y / (e * e), 1.0 / np.maximum(y, e))
+        return self.nodes.dofs[rows], (ml * g)[:, None] * w
+
+    def friction_hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`\mu\lambda_a(g P_a + g'(y)/y\,w w^T)` (PSD as it stands, module docstring): ``(dofs, blocks)``."""
+        dim = self.nodes.X.shape[1]
+        if self.mu <= 0.0 or self._lagged is None:
+            return self.nodes.dofs[:0], np.zeros((0, dim, dim))
+        rows, ml, w, y = self._slips(u)
+        e = self.friction_epsilon
+        small = y < e
+        ys = np.maximum(y, e)
+        g = np.where(small, 2.0 / e - y / (e * e), 1.0 / ys)
+        # g'(y)/y: -1/(e^2 y) below e (times w w^T with |w| = y: bounded), -1/y^3 above
+        dg = np.where(small, -1.0 / (e * e * np.maximum(y, 1e-300)), -1.0 / ys**3)
+        P = self._lagged[1][rows]
+        blocks = ml[:, None, None] * (g[:, None, None] * P + dg[:, None, None] * np.einsum("mi,mj->mij", w, w))
+        return self.nodes.dofs[rows], blocks
+
+    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""The barrier's :math:`\kappa b'(d_a)\nabla d_a` at the active nodes, and the friction's (if any)."""
+        dofs, values = self._barrier_gradient(u)
+        if self.mu <= 0.0:
+            return dofs, values
+        fdofs, fvalues = self.friction_gradient(u)
+        return np.concatenate([dofs, fdofs]), np.concatenate([values, fvalues])
+
+    def hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """The barrier's Hessian blocks (PSD-projected unless ``project=False``), and the friction's (if any)."""
+        dofs, blocks = self._barrier_hessian(u, project)
+        if self.mu <= 0.0:
+            return dofs, blocks
+        fdofs, fblocks = self.friction_hessian(u)
+        return np.concatenate([dofs, fdofs]), np.concatenate([blocks, fblocks])
+
     def energy(self, u: np.ndarray) -> float:
-        r"""This rank's :math:`\kappa\sum_a b(d_a)` (``inf`` if a node is on or through the obstacle)."""
-        return self.stiffness * float(barrier(self.distances(u), self.dhat).sum())
+        r"""This rank's :math:`\kappa\sum_a b(d_a)` (``inf`` on or through the obstacle), plus :math:`D`."""
+        value = self.stiffness * float(barrier(self.distances(u), self.dhat).sum())
+        return value + self.friction_energy(u) if self.mu > 0.0 else value
 
     def _active(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rows of the nodes with :math:`d < \\hat d` and their :math:`b'`, :math:`b''`."""
@@ -95,7 +228,13 @@ class NodalBarrier:
         Args:
             u: The unknown's local array or a SNES vector (default: the current state).
         """
-        _, values = self.gradient(self._state(u))
+        _, values = self._barrier_gradient(self._state(u))
+        local = values.sum(axis=0) if len(values) else np.zeros(self.nodes.X.shape[1])
+        return -self.comm.allreduce(local, op=MPI.SUM)
+
+    def friction_force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
+        r"""The friction force the obstacle exerts on the body, :math:`-\sum_a \mu\lambda_a g\,w_a` (collective)."""
+        _, values = self.friction_gradient(self._state(u))
         local = values.sum(axis=0) if len(values) else np.zeros(self.nodes.X.shape[1])
         return -self.comm.allreduce(local, op=MPI.SUM)
 
@@ -109,13 +248,19 @@ class NodalBarrier:
         return float(self.comm.allreduce(float(d.min()) if len(d) else float("inf"), op=MPI.MIN))
 
     def record(self, step: object = None) -> dict[str, object]:
-        """The output columns at the current state: ``<name>_force``, ``<name>_active``, ``<name>_min_distance``."""
+        """The output columns at the current state: ``<name>_force``, ``<name>_active``, ``<name>_min_distance``.
+
+        With friction also ``<name>_friction_force`` (:meth:`friction_force`; ``<name>_force`` is the normal part).
+        """
         name = self.contact.name
-        return {
+        out: dict[str, object] = {
             f"{name}_force": [float(v) for v in self.force()],
             f"{name}_active": self.active_count(),
             f"{name}_min_distance": self.min_distance(),
         }
+        if self.mu > 0.0:
+            out[f"{name}_friction_force"] = [float(v) for v in self.friction_force()]
+        return out
 
     def _check_start(self, obstacle: str) -> None:
         """A one-line :class:`ParameterError` (every rank) if a node starts on or through the obstacle."""

@@ -60,7 +60,7 @@ __all__ = ["PlaneBarrier", "PlaneContact"]
 
 @dataclass(frozen=True)
 class PlaneContact:
-    r"""Frictionless, intersection-free contact of a named boundary with a rigid plane (module docstring).
+    r"""Intersection-free contact (optional friction) of a boundary with a rigid plane (module docstring).
 
     Attributes:
         boundary: The boundary group whose nodes may touch the plane.
@@ -73,6 +73,10 @@ class PlaneContact:
         profile: :math:`f(t)` of the translation (default: the load factor).
         safety: The collision filter's :math:`s \in (0, 1)` (:data:`~hyperfem.contact.ccd.CCD_SAFETY`).
         name: Prefix of the output columns (``contact_force``, ...).
+        friction: Coulomb coefficient :math:`\mu \ge 0` (0: frictionless), smoothed and lagged per
+            step as in IPC (:mod:`~hyperfem.contact.nodal`).
+        friction_epsilon: The slip length :math:`\epsilon > 0` below which a node sticks elastically
+            (``None``: :math:`0.1\,\hat d`).
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` is not installed
@@ -88,6 +92,8 @@ class PlaneContact:
     profile: Callable[[float], float] = linear_profile
     safety: float = CCD_SAFETY
     name: str = "contact"
+    friction: float = 0.0
+    friction_epsilon: float | None = None
 
     def __post_init__(self) -> None:
         check_name(self.boundary, "boundary", "PlaneContact")
@@ -101,6 +107,10 @@ class PlaneContact:
                 check_positive(key, getattr(self, key), where)
         if not (isinstance(self.safety, (int, float)) and 0.0 < self.safety < 1.0):
             raise ParameterError(f"{where}: safety must be a number in (0, 1), got {self.safety!r}")
+        if not (isinstance(self.friction, (int, float)) and float(self.friction) >= 0.0 and np.isfinite(self.friction)):
+            raise ParameterError(f"{where}: friction must be a number >= 0, got {self.friction!r}")
+        if self.friction_epsilon is not None:
+            check_positive("friction_epsilon", self.friction_epsilon, where)
         check_callable(self.profile, where, "profile")
         check_name(self.name, "name", where)
         require_ipctk(where)
@@ -162,6 +172,7 @@ class PlaneBarrier(NodalBarrier):
         self.stiffness = (
             contact.stiffness if contact.stiffness is not None else default_stiffness(problem, self.nodes, self.normal)
         )
+        self._init_friction(contact)
         self.step_filter = PlaneCollisionFilter(self.nodes.dofs, self.distances, self.normal, contact.safety)
 
     # -- the ExternalEnergy contract ----------------------------------------
@@ -169,18 +180,23 @@ class PlaneBarrier(NodalBarrier):
         """Move the plane to time (load factor) ``t``."""
         self.time = float(t)
         self._origin = self.obstacle.origin(t)
+        self._refresh_lag()
 
     def distances(self, u: np.ndarray) -> np.ndarray:
         """Signed distances :math:`d_a` of the owned nodes for the unknown's local array ``u``."""
         return (self.nodes.positions(u) - self._origin) @ self.normal
 
-    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _barrier_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`\kappa b'(d_a)\,n` at the active nodes: ``(dofs, values)`` of shape ``(m, dim)``."""
         rows, first, _ = self._active(u)
         return self.nodes.dofs[rows], self.stiffness * first[:, None] * self.normal[None, :]
 
-    def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _barrier_hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`\kappa b''(d_a)\,n n^T` at the active nodes: ``(dofs, blocks)``, blocks ``(m, dim, dim)``."""
         rows, _, second = self._active(u)
         outer = np.outer(self.normal, self.normal)
         return self.nodes.dofs[rows], self.stiffness * second[:, None, None] * outer[None, :, :]
+
+    def normals(self, u: np.ndarray) -> np.ndarray:
+        """The plane's unit normal at every owned node."""
+        return np.tile(self.normal, (len(self.nodes.dofs), 1))

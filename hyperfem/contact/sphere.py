@@ -66,7 +66,7 @@ def project_psd(blocks: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SphereContact:
-    r"""Frictionless, intersection-free contact of a named boundary with a rigid sphere (module docstring).
+    r"""Intersection-free contact (optional friction) of a boundary with a rigid sphere (module docstring).
 
     Attributes:
         boundary: The boundary group whose nodes may touch the sphere.
@@ -79,6 +79,10 @@ class SphereContact:
         profile: :math:`f(t)` of the translation (default: the load factor).
         safety: The collision filter's :math:`s \in (0, 1)` (:data:`~hyperfem.contact.ccd.CCD_SAFETY`).
         name: Prefix of the output columns (``contact_force``, ...).
+        friction: Coulomb coefficient :math:`\mu \ge 0` (0: frictionless), smoothed and lagged per
+            step as in IPC (:mod:`~hyperfem.contact.nodal`).
+        friction_epsilon: The slip length :math:`\epsilon > 0` below which a node sticks elastically
+            (``None``: :math:`0.1\,\hat d`).
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` is not installed
@@ -94,6 +98,8 @@ class SphereContact:
     profile: Callable[[float], float] = linear_profile
     safety: float = CCD_SAFETY
     name: str = "contact"
+    friction: float = 0.0
+    friction_epsilon: float | None = None
 
     def __post_init__(self) -> None:
         check_name(self.boundary, "boundary", "SphereContact")
@@ -107,6 +113,10 @@ class SphereContact:
                 check_positive(key, getattr(self, key), where)
         if not (isinstance(self.safety, (int, float)) and 0.0 < self.safety < 1.0):
             raise ParameterError(f"{where}: safety must be a number in (0, 1), got {self.safety!r}")
+        if not (isinstance(self.friction, (int, float)) and float(self.friction) >= 0.0 and np.isfinite(self.friction)):
+            raise ParameterError(f"{where}: friction must be a number >= 0, got {self.friction!r}")
+        if self.friction_epsilon is not None:
+            check_positive("friction_epsilon", self.friction_epsilon, where)
         check_callable(self.profile, where, "profile")
         check_name(self.name, "name", where)
         require_ipctk(where)
@@ -166,6 +176,7 @@ class SphereBarrier(NodalBarrier):
         self.stiffness = (
             contact.stiffness if contact.stiffness is not None else default_stiffness(problem, self.nodes, mean)
         )
+        self._init_friction(contact)
         self.step_filter = SphereCollisionFilter(
             self.nodes.dofs, self.nodes.X, lambda: self._center, self.radius, contact.safety
         )
@@ -175,6 +186,7 @@ class SphereBarrier(NodalBarrier):
         """Move the sphere to time (load factor) ``t``."""
         self.time = float(t)
         self._center = self.obstacle.origin(t)
+        self._refresh_lag()
 
     def _offsets(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:math:`x_a - c` and :math:`r_a = |x_a - c|` of the owned nodes."""
@@ -185,14 +197,14 @@ class SphereBarrier(NodalBarrier):
         """Signed distances :math:`d_a = |x_a - c| - R` of the owned nodes for the unknown's local array ``u``."""
         return self._offsets(u)[1] - self.radius
 
-    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _barrier_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`\kappa b'(d_a)\,n_a` at the active nodes: ``(dofs, values)`` of shape ``(m, dim)``."""
         rows, first, _ = self._active(u)
         q, r = self._offsets(u)
         n = q[rows] / r[rows, None]
         return self.nodes.dofs[rows], self.stiffness * first[:, None] * n
 
-    def hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def _barrier_hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
         r"""The blocks :math:`\kappa(b'' n n^T + b'(I - n n^T)/r)` at the active nodes, PSD-projected by default.
 
         Args:
@@ -209,3 +221,8 @@ class SphereBarrier(NodalBarrier):
         tangential = (np.eye(n.shape[1])[None, :, :] - outer) / r[rows, None, None]
         blocks = self.stiffness * (second[:, None, None] * outer + first[:, None, None] * tangential)
         return self.nodes.dofs[rows], project_psd(blocks) if project else blocks
+
+    def normals(self, u: np.ndarray) -> np.ndarray:
+        """The outward unit vectors :math:`n_a = (x_a - c)/r_a` of the owned nodes."""
+        q, r = self._offsets(u)
+        return q / r[:, None]

@@ -115,6 +115,14 @@ class ExternalTerms:
             self._constrained[bc.dof_indices()[0]] = True
         # The last state the solver converged to (the state at construction until then): admissible.
         self._anchor = problem.u.x.array.copy()
+        self._lag()
+
+    def _lag(self) -> None:
+        """Let the energies with lagged quantities (friction) take them at the current state (``lag(u)``)."""
+        for energy in self.energies:
+            lag = getattr(energy, "lag", None)
+            if lag is not None:
+                lag(self.u.x.array)
 
     def __bool__(self) -> bool:
         return bool(self.energies)
@@ -177,8 +185,15 @@ class ExternalTerms:
         return next((why for why in self.comm.allgather(local) if why), "")
 
     def remember(self) -> None:
-        """Keep the current state as the anchor of :meth:`pull_back` (the solver calls it after a converged solve)."""
+        """Keep the current state as the anchor of :meth:`pull_back` and the friction's lag (after a converged solve).
+
+        The solver calls it after every converged solve (an accepted step; a
+        failed solve that is cut back does not), a restart after loading the
+        state: an energy's lagged quantities (:meth:`~hyperfem.contact.nodal.NodalBarrier.lag`)
+        follow the accepted steps.
+        """
         self._anchor[:] = self.u.x.array
+        self._lag()
 
     def pull_back(self) -> bool:
         r"""Move a refused start guess back toward the anchor, to the fraction the step filters allow (collective).
