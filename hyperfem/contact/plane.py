@@ -44,16 +44,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hyperfem.contact.barrier import require_ipctk
 from hyperfem.contact.ccd import CCD_SAFETY, PlaneCollisionFilter
 from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
+from hyperfem.contact.settings import check_contact_settings
 from hyperfem.contact.obstacles import HalfSpace, check_plane
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
-from hyperfem.validation import check_callable, check_name, check_positive
+from hyperfem.validation import check_name
 
 __all__ = ["PlaneBarrier", "PlaneContact"]
 
@@ -102,18 +102,10 @@ class PlaneContact:
         object.__setattr__(self, "point", p)
         object.__setattr__(self, "normal", n)
         object.__setattr__(self, "motion", m)
-        for key in ("dhat", "stiffness"):
-            if getattr(self, key) is not None:
-                check_positive(key, getattr(self, key), where)
-        if not (isinstance(self.safety, (int, float)) and 0.0 < self.safety < 1.0):
-            raise ParameterError(f"{where}: safety must be a number in (0, 1), got {self.safety!r}")
-        if not (isinstance(self.friction, (int, float)) and float(self.friction) >= 0.0 and np.isfinite(self.friction)):
-            raise ParameterError(f"{where}: friction must be a number >= 0, got {self.friction!r}")
-        if self.friction_epsilon is not None:
-            check_positive("friction_epsilon", self.friction_epsilon, where)
-        check_callable(self.profile, where, "profile")
-        check_name(self.name, "name", where)
-        require_ipctk(where)
+        check_contact_settings(
+            where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=self.friction,
+            friction_epsilon=self.friction_epsilon, profile=self.profile, name=self.name,
+        )
 
     @property
     def obstacle(self) -> HalfSpace:

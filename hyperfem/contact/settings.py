@@ -1,0 +1,47 @@
+"""The checks every contact shares: barrier width and stiffness, filter safety, friction, profile, name.
+
+One function for :class:`~hyperfem.contact.PlaneContact` and
+:class:`~hyperfem.contact.SphereContact` (their obstacle's own entries are
+checked by :mod:`~hyperfem.contact.obstacles`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from hyperfem.contact.barrier import require_ipctk
+from hyperfem.errors import ParameterError
+from hyperfem.validation import check_callable, check_name, check_positive
+
+__all__ = ["check_contact_settings"]
+
+
+def check_contact_settings(
+    where: str,
+    *,
+    dhat: float | None,
+    stiffness: float | None,
+    safety: float,
+    friction: float,
+    friction_epsilon: float | None,
+    profile: Callable[[float], float],
+    name: str,
+) -> None:
+    """Refuse a bad shared entry of a contact in one line (``where``: ``PlaneContact on 'bottom'``).
+
+    Raises:
+        ParameterError: ``dhat``, ``stiffness`` or ``friction_epsilon`` not > 0, ``safety`` outside (0, 1),
+            ``friction`` < 0, ``profile`` not callable, a bad ``name``, or ``ipctk`` not installed.
+    """
+    for key, value in (("dhat", dhat), ("stiffness", stiffness), ("friction_epsilon", friction_epsilon)):
+        if value is not None:
+            check_positive(key, value, where)
+    if not (isinstance(safety, (int, float)) and 0.0 < safety < 1.0):
+        raise ParameterError(f"{where}: safety must be a number in (0, 1), got {safety!r}")
+    if not (isinstance(friction, (int, float)) and float(friction) >= 0.0 and np.isfinite(friction)):
+        raise ParameterError(f"{where}: friction must be a number >= 0, got {friction!r}")
+    check_callable(profile, where, "profile")
+    check_name(name, "name", where)
+    require_ipctk(where)
