@@ -196,7 +196,7 @@ class QuadratureField:
         else:
             element = basix.ufl.quadrature_element(cell, value_shape=self.shape, degree=self.degree)
             self.space = fem.functionspace(mesh, element)
-            self.points, _ = basix.make_quadrature(cell, self.degree)  # type: ignore[assignment]  # basix: ndarrays
+            self.points, _ = basix.make_quadrature(cell, self.degree)  # type: ignore[assignment, unused-ignore]  # basix: ndarrays (stubs differ between the wheel and Debian)
         self.function = fem.Function(self.space, name=name)
         tdim = mesh.topology.dim
         imap = mesh.topology.index_map(tdim)
