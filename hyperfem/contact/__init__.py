@@ -20,6 +20,7 @@ Importing this package does not import ``ipctk``; constructing a contact
 without it raises a one-line :class:`~hyperfem.errors.ParameterError`.
 """
 
+from hyperfem.contact.bodies import SurfaceContact, surface_defaults
 from hyperfem.contact.barrier import CONTACT_EXTRA, barrier, barrier_derivatives, require_ipctk
 from hyperfem.contact.ccd import (
     CCD_SAFETY,
@@ -31,6 +32,9 @@ from hyperfem.contact.ccd import (
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, default_dhat, default_stiffness
 from hyperfem.contact.nodes import BoundaryNodes, boundary_nodes, facet_size
 from hyperfem.contact.nodal import NodalBarrier
+from hyperfem.contact.mesh_barrier import MeshBarrier, MeshCollisionFilter, RigidSurface
+from hyperfem.contact.surface import ContactSurface, contact_surface
+from hyperfem.contact.tool import ToolContact, read_tool_surface
 from hyperfem.contact.obstacles import Ball, HalfSpace
 from hyperfem.contact.plane import PlaneBarrier, PlaneContact
 from hyperfem.contact.sphere import SphereBarrier, SphereContact, project_psd
@@ -42,6 +46,15 @@ __all__ = [
     "STIFFNESS_FACTOR",
     "Ball",
     "BoundaryNodes",
+    "ContactSurface",
+    "MeshBarrier",
+    "MeshCollisionFilter",
+    "RigidSurface",
+    "SurfaceContact",
+    "ToolContact",
+    "read_tool_surface",
+    "contact_surface",
+    "surface_defaults",
     "HalfSpace",
     "NodalBarrier",
     "PlaneBarrier",

@@ -28,7 +28,7 @@ from dolfinx import fem
 from hyperfem.contact.nodes import BoundaryNodes, facet_size
 from hyperfem.problem.protocol import SolidProblem
 
-__all__ = ["DHAT_FRACTION", "STIFFNESS_FACTOR", "default_dhat", "default_stiffness"]
+__all__ = ["DHAT_FRACTION", "STIFFNESS_FACTOR", "default_dhat", "default_stiffness", "mean_tangent_diagonal"]
 
 DHAT_FRACTION = 1e-2
 r""":math:`\hat d` by default: this fraction of the mean facet diameter of the contact boundary."""
@@ -42,19 +42,32 @@ def default_dhat(problem: SolidProblem, boundary: str) -> float:
     return DHAT_FRACTION * facet_size(problem.domain, boundary)
 
 
-def default_stiffness(problem: SolidProblem, nodes: BoundaryNodes, normal: np.ndarray) -> float:
-    r""":data:`STIFFNESS_FACTOR` times :math:`\bar k_n` (module docstring) at the current state (collective).
+def mean_tangent_diagonal(problem: SolidProblem, dofs: np.ndarray, weights: np.ndarray) -> float:
+    r"""The mean over the rows of ``dofs`` of :math:`\sum_i w_i K_{d_i d_i}` at the current state (collective).
 
     Assembles the problem's tangent once (without boundary conditions).
+
+    Args:
+        problem: The problem.
+        dofs: Owned local dofs, shape ``(m, k)``.
+        weights: :math:`w`, shape ``(k,)`` (a normal squared, or :math:`1/k` for the mean of the components).
     """
     A = fpetsc.assemble_matrix(fem.form(problem.jacobian))
     A.assemble()
     diagonal = A.getDiagonal()
     try:
-        values = diagonal.array_r[nodes.dofs] if len(nodes.dofs) else np.zeros((0, len(normal)))
-        local = np.array([float((values * normal**2).sum()), float(len(values))])
+        values = diagonal.array_r[dofs] if len(dofs) else np.zeros((0, len(weights)))
+        local = np.array([float((values * weights).sum()), float(len(values))])
     finally:
         diagonal.destroy()
         A.destroy()
     total, count = problem.domain.comm.allreduce(local, op=MPI.SUM)
-    return STIFFNESS_FACTOR * float(total / count)
+    return float(total / count)
+
+
+def default_stiffness(problem: SolidProblem, nodes: BoundaryNodes, normal: np.ndarray) -> float:
+    r""":data:`STIFFNESS_FACTOR` times :math:`\bar k_n` (module docstring) at the current state (collective).
+
+    Assembles the problem's tangent once (without boundary conditions).
+    """
+    return STIFFNESS_FACTOR * mean_tangent_diagonal(problem, nodes.dofs, np.asarray(normal, dtype=float) ** 2)

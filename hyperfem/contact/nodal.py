@@ -205,6 +205,27 @@ class NodalBarrier:
         first, second = barrier_derivatives(d[rows], self.dhat)
         return rows, first, second
 
+    def carried(self, u: np.ndarray, t_from: float) -> tuple[np.ndarray, np.ndarray]:
+        r"""The nodes the obstacle's move from ``t_from`` to now would overrun, and its translation.
+
+        Returns ``(dofs, increments)``.
+
+        A node is overrun where, left in place while the obstacle translates by
+        :math:`\Delta p`, it would keep less than :math:`1 - s` of its distance
+        (the collision filter's rule); moved by :math:`\Delta p` with the
+        obstacle it keeps its distance exactly. The solver's predictor
+        prescribes these increments (:meth:`~hyperfem.solver.external.ExternalTerms.carry`).
+        """
+        obstacle = getattr(self, "obstacle", None)
+        dim = self.nodes.X.shape[1]
+        shift = np.zeros(dim) if obstacle is None else obstacle.origin(self.time) - obstacle.origin(t_from)
+        if not np.any(shift) or not len(self.nodes.dofs):
+            return self.nodes.dofs[:0], np.zeros((0, len(shift)))
+        moved = np.array(u, copy=True)
+        moved[self.nodes.dofs] += shift
+        rows = np.flatnonzero(self.distances(u) < (1.0 - self.contact.safety) * self.distances(moved))
+        return self.nodes.dofs[rows], np.tile(shift, (len(rows), 1))
+
     def admissible(self, u: np.ndarray) -> str:
         """``""``, or which owned node is on or through the obstacle and its distance."""
         d = self.distances(u)

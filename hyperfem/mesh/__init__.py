@@ -19,3 +19,7 @@ __all__ += ["FUSIFORM_GROUPS", "FusiformGeometry", "fusiform_mesh", "write_fusif
 from hyperfem.mesh.quality import MeshQuality, MeshQualityWarning, mesh_quality, quality_report  # noqa: E402
 
 __all__ += ["MeshQuality", "MeshQualityWarning", "mesh_quality", "quality_report"]
+
+from hyperfem.mesh.blocks import BLOCKS_GROUPS, stacked_blocks_mesh, write_stacked_blocks_mesh  # noqa: E402
+
+__all__ += ["BLOCKS_GROUPS", "stacked_blocks_mesh", "write_stacked_blocks_mesh"]

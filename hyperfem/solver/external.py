@@ -30,11 +30,13 @@ form. :class:`ExternalTerms` adds them to what
 * the **step filters** the energies bring (a continuous collision detection),
   composed with the inversion filter.
 
-Blocks are added with ``MatSetValues`` into the finite-element sparsity
-pattern: an energy's Hessian must couple only dofs that an element couples
-already (true for point–obstacle terms: one block per node). Terms between
-nodes of different elements (contact pairs between bodies, self-contact) need
-a matrix of their own or a preallocated pattern: a later slice of issue 19.
+Node blocks (``hessian``: one block per node, point–obstacle terms) lie in
+the finite-element sparsity pattern. An energy whose Hessian couples nodes of
+different elements (contact pairs between surfaces) gives its entries as
+global ``(rows, cols, values)`` through an optional ``coupled_hessian(u)``;
+they are added with PETSc allowed to allocate new nonzeros (the pattern grows
+to the union of the pairs ever active, and PETSc redoes the symbolic set-up of
+the preconditioner when it grew; :mod:`hyperfem.contact.mesh_barrier`).
 """
 
 from __future__ import annotations
@@ -84,6 +86,22 @@ class ExternalEnergy(Protocol):
         """An empty string where the state is admissible on this rank, else why not (one line)."""
 
 
+def _add_entries(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray, values: np.ndarray) -> None:
+    """Add global ``(rows, cols, values)`` (rows owned by this rank, duplicates summed) to ``A``, new nonzeros allowed.
+
+    Collective in effect: every rank calls it (with or without entries) before ``A.assemble()``.
+    """
+    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)  # type: ignore[arg-type, unused-ignore]  # an int
+    if not len(rows):
+        return
+    order = np.lexsort((cols, rows))
+    rows, cols, values = rows[order], cols[order], values[order]
+    unique, starts = np.unique(rows, return_index=True)
+    pointers = np.append(starts, len(rows)).astype(PETSc.IntType)
+    columns, rowmap = cols.astype(PETSc.IntType), unique.astype(PETSc.IntType)
+    A.setValuesIJV(pointers, columns, values, addv=True, rowmap=rowmap)  # type: ignore[arg-type, unused-ignore]
+
+
 class ExternalTerms:
     """The external energies of one solver, added to its objective, residual and tangent (module docstring).
 
@@ -115,6 +133,8 @@ class ExternalTerms:
             self._constrained[bc.dof_indices()[0]] = True
         # The last state the solver converged to (the state at construction until then): admissible.
         self._anchor = problem.u.x.array.copy()
+        self.problem = problem
+        self.anchor_time = float(problem.time)
         self._lag()
 
     def _lag(self) -> None:
@@ -170,6 +190,9 @@ class ExternalTerms:
         identity rows and zero columns DOLFINx made there stay exact.
         """
         for energy in self.energies:
+            coupled = getattr(energy, "coupled_hessian", None)
+            if coupled is not None:
+                _add_entries(A, *coupled(self.u.x.array))
             dofs, blocks = energy.hessian(self.u.x.array)
             if not len(dofs):
                 continue
@@ -193,6 +216,7 @@ class ExternalTerms:
         follow the accepted steps.
         """
         self._anchor[:] = self.u.x.array
+        self.anchor_time = float(self.problem.time)
         self._lag()
 
     def pull_back(self) -> bool:
@@ -231,3 +255,68 @@ class ExternalTerms:
             y.destroy()
         self.u.x.array[:] = self._anchor + alpha * (guess - self._anchor)
         return True
+
+    def carry(self) -> tuple[np.ndarray, np.ndarray] | None:
+        r"""Put the state back at the anchor and give the increments that carry the nodes an obstacle overran.
+
+        An obstacle that moved into the body since the anchor (a tool pushed
+        into tissue that it touches already) makes the anchor inadmissible at
+        the new time, and no step filter can pull a guess back into an
+        admissible state. Each energy with a prescribed motion names the nodes
+        its move would overrun and their increment (``carried(u, t_anchor)``:
+        the obstacle's translation, so they keep their place relative to it);
+        the solver's predictor prescribes them, with the Dirichlet increments,
+        in one tangent solve at the anchor, which carries the push into the
+        body (:class:`~hyperfem.solver.predictor.BoundaryPredictor`).
+        Dirichlet dofs keep their own values.
+
+        Returns:
+            Global dofs (this rank's) and their increments, or ``None`` where no
+            energy names any node on any rank, or the anchor itself is refused
+            at its own time (collective).
+        """
+        self.u.x.array[:] = self._anchor
+        rows, values = [], []
+        for energy in self.energies:
+            carried = getattr(energy, "carried", None)
+            if carried is None:
+                continue
+            dofs, increments = carried(self._anchor, self.anchor_time)
+            free = ~self._constrained[dofs]
+            rows.append(self._global[dofs][free])
+            values.append(increments[free])
+        local_rows = np.concatenate(rows) if rows else np.zeros(0, dtype=self._global.dtype)
+        local_values = np.concatenate(values) if values else np.zeros(0)
+        if not self.comm.allreduce(len(local_rows), op=MPI.SUM):
+            return None
+        return local_rows.astype(PETSc.IntType), local_values.astype(float)
+
+    def sweep_refusal(self) -> str:
+        """Why the joint move from the anchor (obstacles at the anchor time) to now is not collision-free, or ``""``.
+
+        For the energies with ``sweep_fraction`` (a triangulated tool: a thin
+        body could pass through it between the two end states, which the end
+        state's check does not see). Collective.
+        """
+        for energy in self.energies:
+            sweep = getattr(energy, "sweep_fraction", None)
+            if sweep is None:
+                continue
+            fraction = sweep(self._anchor, self.anchor_time, self.u.x.array)
+            if fraction < 1.0:
+                return (
+                    f"{getattr(energy, 'where', 'contact')}: the tool's move from t = {self.anchor_time:g} to "
+                    f"t = {self.problem.time:g} sweeps through the body (collision-free fraction {fraction:.3g})"
+                )
+        return ""
+
+    def exact_tangents(self) -> bool:
+        """Whether an energy gave its exact (possibly indefinite) Hessian at the last tangent."""
+        return any(bool(getattr(e, "exact_tangent", False)) for e in self.energies)
+
+    def project_tangents(self) -> None:
+        """Let every energy with a choice project its Hessian until the next solve (``project_tangent()``)."""
+        for energy in self.energies:
+            project = getattr(energy, "project_tangent", None)
+            if project is not None:
+                project()

@@ -506,6 +506,8 @@ class NewtonSolver:
         # times the largest step that keeps every cell above volume_fraction
         # of its volume, then halving until the full step keeps every
         # quadrature point above min_jacobian).
+        if self.external and self.external.exact_tangents():
+            self._descent_guard(x, y)
         fpetsc.set_bc(y, self.problem.bcs, x0=x, alpha=-1.0)
         try:
             self.step_filters.apply(x, y)
@@ -514,6 +516,24 @@ class NewtonSolver:
             # solve (DIVERGED_FUNCTION_DOMAIN, a failed solve the stepper cuts back).
             self._refusal = str(refusal)
         self._set_state(x, hooks=False)
+
+    def _descent_guard(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        r"""Replace a direction that does not descend (an exact, indefinite contact tangent) by the projected one.
+
+        SNES tries :math:`x - \lambda y`: a descent direction has :math:`r\cdot y > 0`.
+        Otherwise the energies project their Hessians for the rest of the solve,
+        the tangent is assembled again at ``x`` and ``y`` solved anew
+        (:mod:`hyperfem.contact.mesh_barrier`).
+        """
+        r = self.snes.getFunction()[0]  # type: ignore[index, unused-ignore]  # petsc4py stubs: (Vec, callback)
+        if r.dot(y) > 0.0:
+            return
+        self.external.project_tangents()
+        J, P, _ = self.snes.getJacobian()
+        self.snes.computeJacobian(x, J, P)
+        ksp = self.snes.getKSP()
+        ksp.setOperators(J, P)
+        ksp.solve(r, y)
 
     def _converged(self, snes: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
         """SNES convergence test: a refused step ends the solve, else the round-off stop's test."""
@@ -603,10 +623,17 @@ class NewtonSolver:
         # back toward the last converged state first, and the predictor runs only from an admissible one.
         if self.external:
             self.external.pull_back()
-        admissible = not (self.external and self.external.refusal())
-        predicted = admissible and self.predictor and self._boundary_predictor.moved() and self._predict()
+        carried = None
+        if self.external and self.predictor and self.external.refusal():
+            # An obstacle moved into the body: carry the nodes it overran in the predictor's tangent solve.
+            carried = self.external.carry()
+        admissible = carried is not None or not (self.external and self.external.refusal())
+        moved = carried is not None or self._boundary_predictor.moved()
+        predicted = admissible and self.predictor and moved and self._predict(carried)
         self._apply_dirichlet()
         refusal = self._start_refusal()
+        if not refusal and carried is not None and self.external:
+            refusal = self.external.sweep_refusal()
         solved = not refusal
         reason, message = (self._run_snes(), "") if solved else (_DOMAIN, refusal)
         self.problem.u.x.scatter_forward()
@@ -644,14 +671,27 @@ class NewtonSolver:
         self.external.update(self.problem.time)
         return self.inversion_cutbacks, self.roundoff_accepts, self.filtered_steps, pc_setup_seconds()
 
-    def _predict(self) -> bool:
-        """Run the boundary-increment predictor; whether it moved the state."""
+    def _predict(self, carried: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
+        """Run the boundary-increment predictor (with the nodes an obstacle carries); whether it moved the state."""
+        tangent_terms = self.external.add_tangent if self.external else None
+        if carried is not None:
+            external = self.external
+
+            def tangent_terms(A: PETSc.Mat) -> None:
+                # The tangent at the anchor, where the obstacles still were at the anchor's time.
+                external.update(external.anchor_time)
+                try:
+                    external.add_tangent(A)
+                finally:
+                    external.update(self.problem.time)
+
         return self._boundary_predictor.lift(
             self.snes.getKSP(),
             refresh=self.refresh,
             preconditioner=self._preconditioner,
             admissible=self._admissible,
-            tangent_terms=self.external.add_tangent if self.external else None,
+            tangent_terms=tangent_terms,
+            carried=carried,
         )
 
     def _apply_dirichlet(self) -> None:

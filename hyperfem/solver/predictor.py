@@ -59,6 +59,7 @@ class BoundaryPredictor:
         preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None,
         admissible: Callable[[], bool],
         tangent_terms: Callable[[PETSc.Mat], None] | None = None,
+        carried: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> bool:
         r"""Move the state by the tangent response to the boundary increment.
 
@@ -76,6 +77,9 @@ class BoundaryPredictor:
             admissible: Whether the current state of the unknown is admissible (collective).
             tangent_terms: Adds what the tangent form lacks to the assembled
                 tangent (the solver's external energies, e.g. a contact barrier).
+            carried: More prescribed increments: global dofs (this rank's) and
+                values, lifted like the Dirichlet ones (the nodes an obstacle
+                pushes, :meth:`~hyperfem.solver.external.ExternalTerms.carry`).
 
         Returns:
             Whether a step was applied.
@@ -87,7 +91,7 @@ class BoundaryPredictor:
         refresh()
         du = x.duplicate()
         try:
-            if not self._solve(ksp, x, du, preconditioner, tangent_terms):
+            if not self._solve(ksp, x, du, preconditioner, tangent_terms, carried):
                 return False
             return self._apply(x, du, admissible)
         finally:
@@ -100,6 +104,7 @@ class BoundaryPredictor:
         du: PETSc.Vec,
         preconditioner: Callable[[PETSc.Mat], PETSc.Mat] | None,
         tangent_terms: Callable[[PETSc.Mat], None] | None,
+        carried: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> bool:
         """The lifted tangent solve for ``du``; whether it converged to a finite increment."""
         nlp = self._nlp
@@ -110,13 +115,22 @@ class BoundaryPredictor:
         A.assemble()
         if tangent_terms is not None:
             tangent_terms(A)
-        P = None if preconditioner is None else preconditioner(A)
         b = self._rhs
         with b.localForm() as loc:
             loc.set(0.0)
         fpetsc.apply_lifting(b, [nlp.J], bcs=[bcs], x0=[x], alpha=1.0)  # type: ignore[arg-type]  # dolfinx: J is one Form
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]  # petsc4py: int enums
         fpetsc.set_bc(b, bcs, x0=x, alpha=1.0)
+        if carried is not None:
+            # Lift the carried increments as Dirichlet values: b -= A[:, rows] du_rows, identity rows and columns.
+            rows, values = carried
+            prescribed = b.duplicate()
+            prescribed.set(0.0)
+            prescribed.setValues(rows, values)  # type: ignore[arg-type, unused-ignore]  # petsc4py takes arrays
+            prescribed.assemble()
+            A.zeroRowsColumns(rows, 1.0, prescribed, b)  # type: ignore[arg-type, unused-ignore]  # petsc4py takes arrays
+            prescribed.destroy()
+        P = None if preconditioner is None else preconditioner(A)
         ksp.setOperators(A, A if P is None else P)
         ksp.solve(b, du)
         return ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))  # type: ignore[operator]  # petsc4py: an int

@@ -1,0 +1,473 @@
+r"""The IPC barrier between surface primitives (self-contact, two bodies, a rigid triangulated tool), from ``ipctk``.
+
+For a collision mesh of surface triangles (:mod:`~hyperfem.contact.surface`,
+plus the triangles of a rigid tool, if any), the barrier term is
+
+.. math::
+    \kappa B(x) = \kappa \sum_{k \in C(x)} b\bigl(d_k^2(x), \hat d^2\bigr),
+
+summed over the primitive pairs :math:`k` (point–triangle, edge–edge and
+their degenerate point–edge, point–point cases, edge–edge pairs mollified
+where the edges are nearly parallel) closer than :math:`\hat d`, with the
+IPC log barrier :math:`b` taken on *squared* distances as ``ipctk`` does
+(``BarrierPotential``; the nodal barriers of the plane and sphere take
+:math:`b(d, \hat d)`). Energy, gradient and the Hessian, projected onto the
+positive semi-definite cone per pair (``PSDProjectionMethod.CLAMP``), all come
+from ``ipctk``. The pair set :math:`C(x)` is rebuilt at every state the
+solver evaluates, line-search trial states included, from the candidates of
+a broad phase (``HashGrid``) with boxes inflated by :math:`\hat d`.
+
+**Tangent.** A pair couples the nodes of different elements (of different
+bodies), outside the finite-element sparsity pattern: the entries are added
+to the tangent with PETSc allowed to allocate new nonzeros
+(``MAT_NEW_NONZERO_ALLOCATION_ERR`` off;
+:meth:`~hyperfem.solver.external.ExternalTerms.add_tangent`). The pattern
+grows to the union of the pairs ever active and keeps its (zeroed) entries
+when a pair separates; PETSc sees the changed nonzero state and redoes the
+symbolic set-up of the preconditioner or factorisation. A matrix of its own
+added with ``MatAXPY`` would re-merge the patterns at every iteration; a
+pattern preallocated for every possible pair would be dense over the surface.
+
+**Projection and Newton's rate.** The projected Hessian is not the
+derivative of the gradient: with it Newton converges linearly (a rate of
+0.74 per iteration seen on a sphere indenting a slab). The tangent is
+therefore projected while the iterates still move (a vertex moved by more
+than :math:`\hat d` since the last tangent) and exact once they settle, which
+restores the quadratic rate at the end of a solve. An exact tangent can be
+indefinite; where its Newton direction is not a descent direction of
+:math:`\Pi`, the solver recomputes the direction with the projected tangent
+and keeps projecting for the rest of the solve
+(:meth:`MeshBarrier.project_tangent`, called from the line search's
+pre-check through :meth:`~hyperfem.solver.external.ExternalTerms.descent_guard`).
+
+**Step filter** (:class:`MeshCollisionFilter`): ``ipctk``'s continuous
+collision detection of the linear trajectory from the iterate to the full
+Newton step, with ``AdditiveCCD`` (TightInclusion, the default, is
+pathologically slow in the 1.6 wheel), whose conservative rescaling is our
+safety :math:`s`: every pair keeps at least :math:`(1 - s)` of its distance,
+as for the plane.
+
+**Default stiffness.** With :math:`b` on squared distances a pair at
+:math:`d \ll \hat d` carries the force :math:`2\kappa\hat d^4/d`, the nodal
+barrier :math:`\kappa_n\hat d^2/d`: the default :math:`\kappa = \bar k/(2\hat d^2)`
+(:math:`\bar k` the mean tangent diagonal at the surface nodes,
+:mod:`~hyperfem.contact.defaults`) gives the force law of the nodal default.
+
+MPI: the surface is gathered to every rank and the barrier evaluated
+redundantly (:mod:`~hyperfem.contact.surface` says how that scales and what
+a halo exchange would do); each rank keeps the gradient rows and Hessian rows
+of the nodes it owns, rank 0 reports the energy. The result is the same on
+any number of ranks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from hyperfem.contact.barrier import require_ipctk
+from hyperfem.contact.surface import ContactSurface
+from hyperfem.errors import ParameterError
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.solver.filters import NoAdmissibleStep
+
+__all__ = ["MeshBarrier", "MeshCollisionFilter", "RigidSurface", "ray_hits"]
+
+
+class RigidSurface:
+    """A rigid triangulated surface (a tool) with a prescribed translation.
+
+    Args:
+        points: Vertex positions at ``profile(t) = 0``, shape ``(k, 3)``.
+        faces: Triangles, shape ``(f, 3)``, indices into ``points``.
+        motion: The translation :math:`m` (``None``: it stays).
+        profile: :math:`f(t)` of the translation.
+    """
+
+    def __init__(
+        self,
+        points: np.ndarray,
+        faces: np.ndarray,
+        motion: np.ndarray | None,
+        profile: Callable[[float], float],
+    ):
+        self.points = np.asarray(points, dtype=float).reshape(-1, 3)
+        self.faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
+        self.motion = None if motion is None else np.asarray(motion, dtype=float)
+        self.profile = profile
+
+    def offset(self, t: float) -> np.ndarray:
+        """The translation :math:`f(t)\\,m` at time (load factor) ``t``."""
+        if self.motion is None:
+            return np.zeros(3)
+        return float(self.profile(t)) * self.motion
+
+    def vertices(self, t: float) -> np.ndarray:
+        """The vertex positions at time ``t``."""
+        return self.points + self.offset(t)
+
+
+def _f(a: np.ndarray) -> np.ndarray:
+    """An F-ordered float64 copy (what the ``ipctk`` bindings take without converting)."""
+    return np.asfortranarray(a, dtype=float)
+
+
+def ray_hits(origins: np.ndarray, direction: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distance along ``direction`` (a unit vector) from each origin to the first triangle it hits, and its index.
+
+    ``inf`` and -1 where the ray hits none.
+
+    Möller–Trumbore, vectorised over origins × triangles in chunks.
+
+    Args:
+        origins: Shape ``(m, 3)``.
+        direction: Shape ``(3,)``.
+        triangles: Corner positions, shape ``(f, 3, 3)``.
+    """
+    out = np.full(len(origins), np.inf)
+    index = np.full(len(origins), -1, dtype=np.int64)
+    if not len(origins) or not len(triangles):
+        return out, index
+    a = triangles[:, 0]
+    e1 = triangles[:, 1] - a
+    e2 = triangles[:, 2] - a
+    p = np.cross(direction, e2)  # (f, 3)
+    det = np.einsum("fi,fi->f", e1, p)
+    ok = np.abs(det) > 1e-300
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    chunk = max(1, 2_000_000 // max(1, len(triangles)))
+    for start in range(0, len(origins), chunk):
+        o = origins[start : start + chunk]
+        s = o[:, None, :] - a[None, :, :]  # (m, f, 3)
+        b1 = np.einsum("mfi,fi->mf", s, p) * inv
+        q = np.cross(s, e1[None, :, :])
+        b2 = np.einsum("mfi,i->mf", q, direction) * inv
+        t = np.einsum("mfi,fi->mf", q, e2) * inv
+        inside = ok & (b1 >= 0.0) & (b2 >= 0.0) & (b1 + b2 <= 1.0) & (t >= 0.0)
+        t = np.where(inside, t, np.inf)
+        first = t.argmin(axis=1)
+        out[start : start + chunk] = t[np.arange(len(o)), first]
+        index[start : start + chunk] = np.where(np.isfinite(out[start : start + chunk]), first, -1)
+    return out, index
+
+
+class MeshBarrier:
+    r"""The barrier term :math:`\kappa B` of a collision surface and an optional rigid tool (module docstring).
+
+    An :class:`~hyperfem.solver.external.ExternalEnergy` whose tangent entries
+    couple nodes (:meth:`coupled_hessian`).
+
+    Args:
+        contact: The contact it was bound from (``name`` for the outputs).
+        problem: The problem.
+        surface: The gathered collision surface.
+        where: The contact, for messages.
+        dhat: :math:`\hat d`.
+        stiffness: :math:`\kappa` (``ipctk``'s, on squared distances).
+        safety: The collision filter's :math:`s`.
+        tool: A rigid surface (``None``: none).
+
+    Attributes:
+        step_filter: The :class:`MeshCollisionFilter`.
+        time: The time the tool is at.
+    """
+
+    def __init__(
+        self,
+        contact: Any,
+        problem: SolidProblem,
+        surface: ContactSurface,
+        *,
+        where: str,
+        dhat: float,
+        stiffness: float,
+        safety: float,
+        tool: RigidSurface | None = None,
+    ):
+        self.ipctk = ipctk = require_ipctk(where)
+        self.contact = contact
+        self.problem = problem
+        self.surface = surface
+        self.comm = problem.domain.comm
+        self.where = where
+        self.dhat = float(dhat)
+        self.stiffness = float(stiffness)
+        self.tool = tool
+        n = surface.size
+        faces = surface.faces
+        rest = surface.X
+        if tool is not None:
+            faces = np.vstack([faces, tool.faces + n])
+            rest = np.vstack([rest, tool.vertices(problem.time)])
+        self.mesh = ipctk.CollisionMesh(_f(rest), np.asfortranarray(ipctk.edges(faces)), np.asfortranarray(faces))
+        if tool is not None:
+            self.mesh.can_collide = ipctk.make_static_obstacle_filter(n)  # no tool–tool pairs
+        self.potential = ipctk.BarrierPotential(self.dhat, self.stiffness)
+        self._ccd = ipctk.AdditiveCCD(conservative_rescaling=float(safety))
+        # The global dof of every collision-mesh dof (-1: a tool's) and whether it is a Dirichlet dof.
+        tool_dofs = 0 if tool is None else 3 * len(tool.points)
+        self._global = np.concatenate([surface.global_dofs.ravel(), np.full(tool_dofs, -1, dtype=np.int64)])
+        self._fixed = np.concatenate([surface.constrained.ravel(), np.ones(tool_dofs, dtype=bool)])
+        own = (3 * surface.rows[:, None] + np.arange(3)).ravel()
+        self._own = np.zeros(len(self._global), dtype=bool)
+        self._own[own] = True
+        self._cache: tuple[np.ndarray, Any] | None = None
+        self._tangent_at: np.ndarray | None = None
+        self._project = False
+        self.exact_tangent = False
+        self.time = float(problem.time)
+        self._tool_now = None if tool is None else tool.vertices(self.time)
+        self.step_filter = MeshCollisionFilter(self, float(safety))
+        self._check_start()
+
+    # -- states -------------------------------------------------------------
+    def update(self, t: float) -> None:
+        """Move the tool (if any) to time (load factor) ``t``."""
+        self.time = float(t)
+        if self.tool is not None:
+            self._tool_now = self.tool.vertices(self.time)
+        self._cache = None
+        self._tangent_at = None
+        self._project = False
+
+    def project_tangent(self) -> None:
+        """Project the Hessian onto the PSD cone at every tangent until the next :meth:`update` (the next solve)."""
+        self._project = True
+
+    def vertices(self, u: np.ndarray) -> np.ndarray:
+        """The collision mesh's vertices for the unknown's local array ``u`` (collective)."""
+        body = self.surface.positions(u)
+        return body if self._tool_now is None else np.vstack([body, self._tool_now])
+
+    def _collisions(self, V: np.ndarray) -> Any:
+        """The pairs closer than :math:`\\hat d` at the vertices ``V`` (cached for the last ``V``)."""
+        if self._cache is not None and np.array_equal(self._cache[0], V):
+            return self._cache[1]
+        ipctk = self.ipctk
+        candidates = ipctk.Candidates()
+        candidates.build(self.mesh, _f(V), self.dhat, ipctk.HashGrid())
+        collisions = ipctk.NormalCollisions()
+        collisions.build(candidates, self.mesh, _f(V), self.dhat)
+        self._cache = (V.copy(), collisions)
+        return collisions
+
+    def _min_distance(self, V: np.ndarray) -> float:
+        """The smallest distance of a pair closer than :math:`\\hat d`; ``inf`` where there is none."""
+        collisions = self._collisions(V)
+        if not len(collisions):
+            return float("inf")
+        return float(np.sqrt(collisions.compute_minimum_distance(self.mesh, _f(V))))
+
+    # -- the ExternalEnergy contract ----------------------------------------
+    def energy(self, u: np.ndarray) -> float:
+        r"""Rank 0's :math:`\kappa B` (the whole barrier; 0 on the other ranks), ``inf`` where a pair touches."""
+        V = self.vertices(u)
+        collisions = self._collisions(V)
+        if len(collisions) and not self._min_distance(V) > 0.0:
+            return float("inf")
+        value = float(self.potential(collisions, self.mesh, _f(V))) if len(collisions) else 0.0
+        return value if self.comm.rank == 0 else 0.0
+
+    def _gradient_full(self, u: np.ndarray) -> np.ndarray:
+        V = self.vertices(u)
+        collisions = self._collisions(V)
+        if not len(collisions):
+            return np.zeros(V.size)
+        return np.asarray(self.potential.gradient(collisions, self.mesh, _f(V))).ravel()
+
+    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`\partial\kappa B/\partial u` at this rank's owned surface nodes: ``(dofs, values)``, ``(m, 3)``."""
+        g = self._gradient_full(u).reshape(-1, 3)
+        return self.surface.dofs, g[self.surface.rows]
+
+    def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """No node blocks: the Hessian couples nodes and comes from :meth:`coupled_hessian`."""
+        return self.surface.dofs[:0], np.zeros((0, 3, 3))
+
+    def coupled_hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The PSD-projected Hessian's entries in this rank's owned rows: global ``(rows, cols, values)``.
+
+        Rows and columns of Dirichlet dofs and of the tool are left out (the
+        tangent keeps its identity rows and zero columns there).
+        """
+        V = self.vertices(u)
+        collisions = self._collisions(V)
+        if not len(collisions):
+            empty = np.zeros(0, dtype=np.int64)
+            return empty, empty, np.zeros(0)
+        # Projected while the iterates move by more than d-hat, exact once they settle (module docstring).
+        settled = self._tangent_at is not None and float(np.abs(V - self._tangent_at).max()) < self.dhat
+        self._tangent_at = V.copy()
+        self.exact_tangent = settled and not self._project
+        method = self.ipctk.PSDProjectionMethod
+        H = self.potential.hessian(collisions, self.mesh, _f(V), method.NONE if self.exact_tangent else method.CLAMP)
+        H = H.tocoo()
+        keep = self._own[H.row] & ~self._fixed[H.row] & ~self._fixed[H.col] & (H.data != 0.0)
+        return self._global[H.row[keep]], self._global[H.col[keep]], np.asarray(H.data[keep], dtype=float)
+
+    def carried(self, u: np.ndarray, t_from: float) -> tuple[np.ndarray, np.ndarray]:
+        r"""This rank's surface nodes the tool's move from ``t_from`` to now would overrun: ``(dofs, increments)``.
+
+        Relative to the tool, a node moves by :math:`-\Delta` (the tool's
+        translation): it is overrun where that ray hits a tool triangle (at
+        ``t_from``) within :math:`|\Delta|/s`, i.e. where it would keep less
+        than :math:`1 - s` of its distance along the way (Möller–Trumbore, all
+        owned nodes against all tool triangles). Moved by :math:`\Delta` with
+        the tool it keeps its position relative to the tool exactly.
+        """
+        empty = (self.surface.dofs[:0], np.zeros((0, 3)))
+        if self.tool is None or not len(self.surface.rows):
+            return empty
+        shift = self.tool.offset(self.time) - self.tool.offset(t_from)
+        length = float(np.linalg.norm(shift))
+        if length == 0.0:
+            return empty
+        reach = length / float(self.step_filter.safety)
+        direction = shift / length
+        body = self.surface.positions(u)  # collective: every rank calls carried()
+        tool = self.tool.vertices(t_from)
+        overrun = np.zeros(self.surface.size, dtype=bool)
+        overrun[self.surface.rows] = ray_hits(body[self.surface.rows], -direction, tool[self.tool.faces])[0] < reach
+        # A tool vertex that would cross a body triangle between its nodes: the triangle's nodes move with the tool.
+        distance, face = ray_hits(tool, direction, body[self.surface.faces])
+        overrun[self.surface.faces[face[distance < reach]].ravel()] = True
+        rows = np.flatnonzero(overrun[self.surface.rows])
+        return self.surface.dofs[rows], np.tile(shift, (len(rows), 1))
+
+    def sweep_fraction(self, u_from: np.ndarray, t_from: float, u: np.ndarray) -> float:
+        """The collision-free fraction of the joint move of body (``u_from`` to ``u``) and tool (``t_from`` to now).
+
+        ``ipctk``'s continuous collision detection of both linear trajectories
+        (1: no primitive comes closer than the safety allows on the way).
+        """
+        V0 = self.surface.positions(u_from)
+        V1 = self.surface.positions(u)
+        if self.tool is not None:
+            V0 = np.vstack([V0, self.tool.vertices(t_from)])
+            V1 = np.vstack([V1, self.tool.vertices(self.time)])
+        return float(self.ipctk.compute_collision_free_stepsize(self.mesh, _f(V0), _f(V1), 0.0, self.ipctk.HashGrid(),
+                                                                self._ccd))
+
+    def admissible(self, u: np.ndarray) -> str:
+        """``""``, or that the surfaces touch or intersect at the state ``u`` (the same answer on every rank)."""
+        V = self.vertices(u)
+        distance = self._min_distance(V)
+        if not distance > 0.0:
+            return f"{self.where}: two surface primitives touch at t = {self.time:g} (distance {distance:.3g})"
+        if self.ipctk.has_intersections(self.mesh, _f(V), self.ipctk.HashGrid()):
+            return f"{self.where}: the surfaces intersect at t = {self.time:g}"
+        return ""
+
+    def _check_start(self) -> None:
+        """A one-line :class:`ParameterError` (every rank) where the surfaces start touching or intersecting."""
+        V = self.vertices(self.problem.u.x.array)
+        collisions = self._collisions(V)
+        distance = self._min_distance(V)
+        if not distance > 0.0:
+            k = self._closest_vertex(V, collisions)
+            raise ParameterError(
+                f"{self.where}: the surfaces start in contact: the node at "
+                f"{tuple(float(f'{v:.6g}') for v in V[k])} is at distance {distance:.3g} from another primitive"
+            )
+        if self.ipctk.has_intersections(self.mesh, _f(V), self.ipctk.HashGrid()):
+            raise ParameterError(f"{self.where}: the surfaces intersect at the start (a body starts inside the other)")
+
+    def _closest_vertex(self, V: np.ndarray, collisions: Any) -> int:
+        """A vertex of the closest pair."""
+        best, vertex = float("inf"), 0
+        for i in range(len(collisions)):
+            c = collisions[i]
+            ids = [int(v) for v in c.vertex_ids(self.mesh.edges, self.mesh.faces) if v >= 0]
+            d = float(c.compute_distance(np.ascontiguousarray(V[ids].ravel())))
+            if d < best:
+                best, vertex = d, ids[0]
+        return vertex
+
+    # -- outputs ------------------------------------------------------------
+    def _state(self, u: np.ndarray | PETSc.Vec | None) -> np.ndarray:
+        if u is None:
+            return self.problem.u.x.array
+        return u.array_r if isinstance(u, PETSc.Vec) else u
+
+    def force(self, u: np.ndarray | PETSc.Vec | None = None, group: int | None = None) -> np.ndarray:
+        r"""The contact force on the body's surface nodes (of one group), :math:`-\sum_a \partial\kappa B/\partial x_a`.
+
+        Args:
+            u: The unknown's local array or a SNES vector (default: the current state).
+            group: Index into the surface's boundaries (``None``: every node).
+        """
+        g = self._gradient_full(self._state(u)).reshape(-1, 3)[: self.surface.size]
+        if group is not None:
+            g = g[self.surface.group == group]
+        return -g.sum(axis=0)
+
+    def active_count(self, u: np.ndarray | PETSc.Vec | None = None) -> int:
+        r"""The number of primitive pairs closer than :math:`\hat d`."""
+        return len(self._collisions(self.vertices(self._state(u))))
+
+    def min_distance(self, u: np.ndarray | PETSc.Vec | None = None) -> float:
+        r"""The smallest distance of a pair closer than :math:`\hat d` (``inf`` where none is)."""
+        return self._min_distance(self.vertices(self._state(u)))
+
+    def intersecting(self, u: np.ndarray | PETSc.Vec | None = None) -> bool:
+        """Whether any two triangles or edges of the collision mesh intersect (``ipctk.has_intersections``)."""
+        return bool(self.ipctk.has_intersections(self.mesh, _f(self.vertices(self._state(u))), self.ipctk.HashGrid()))
+
+    def record(self, step: object = None) -> dict[str, object]:
+        """The output columns: ``<name>_force`` (on the first boundary, or on the body from a tool), ``_active``,
+        ``_min_distance``."""
+        name = self.contact.name
+        group = None if self.tool is not None else 0
+        return {
+            f"{name}_force": [float(v) for v in self.force(group=group)],
+            f"{name}_active": self.active_count(),
+            f"{name}_min_distance": self.min_distance(),
+        }
+
+
+class MeshCollisionFilter:
+    r"""A :class:`~hyperfem.solver.filters.NewtonStepFilter`: ``ipctk``'s CCD of the Newton step (module docstring).
+
+    Attributes:
+        cutbacks: Always 0 (the filter never halves).
+        filtered_steps: Newton steps it shortened.
+        min_step_fraction: The smallest fraction it allowed since the solver reset it.
+        min_distance: The smallest pair distance of an iterate it has seen since the last reset to ``inf``.
+    """
+
+    def __init__(self, barrier: MeshBarrier, safety: float):
+        self.barrier = barrier
+        self.safety = safety
+        self.cutbacks = 0
+        self.filtered_steps = 0
+        self.min_step_fraction = 1.0
+        self.min_distance = float("inf")
+
+    def step_fraction(self, x: PETSc.Vec, y: PETSc.Vec) -> float:
+        """The largest fraction of the step ``x -> x - y`` over which no pair loses more than ``s`` of its distance.
+
+        Raises:
+            NoAdmissibleStep: Two primitives of the iterate touch.
+        """
+        b = self.barrier
+        comm: MPI.Comm = b.comm
+        V0 = b.vertices(x.array_r)
+        step = b.surface.displacements(y.array_r)
+        if b._tool_now is not None:
+            step = np.vstack([step, np.zeros_like(b._tool_now)])
+        lowest = b._min_distance(V0)
+        self.min_distance = min(self.min_distance, lowest)
+        if not lowest > 0.0:
+            raise NoAdmissibleStep(f"two contact primitives touch (distance {lowest:.3g})")
+        fraction = float(
+            b.ipctk.compute_collision_free_stepsize(b.mesh, _f(V0), _f(V0 - step), 0.0, b.ipctk.HashGrid(), b._ccd)
+        )
+        fraction = float(comm.allreduce(min(1.0, fraction), op=MPI.MIN))
+        if fraction < 1.0:
+            self.filtered_steps += 1
+            self.min_step_fraction = min(self.min_step_fraction, fraction)
+        return fraction

@@ -1,0 +1,200 @@
+r"""The collision surface of mesh–mesh contact: the boundary triangles of named groups, gathered on every rank.
+
+Self-contact, two bodies and rigid triangulated tools need distances between
+surface *primitives* (point–triangle, edge–edge), not only between nodes and
+an analytic obstacle, and a primitive pair may join nodes that different
+ranks own. The IPC Toolkit (``ipctk``) has no MPI, so this first version
+gathers the boundary surface to every rank (:func:`contact_surface`, once, at
+binding) and the surface displacement at every evaluation
+(:meth:`ContactSurface.positions`, one ``allgather`` of the owned surface
+nodes): every rank then evaluates the whole barrier redundantly and keeps the
+rows of the nodes it owns. Cost per evaluation: :math:`O(n_s)` communication
+and :math:`O(n_s \log n_s)` broad phase on every rank, :math:`n_s` the surface
+nodes: fine to :math:`10^4`–:math:`10^5` surface nodes, not beyond. The
+scalable alternative is a halo exchange: each rank keeps its own surface plus
+the part of the others' within its bounding box inflated by the largest
+displacement of a step and :math:`\hat d`, rebuilt when a node leaves it.
+
+The surface of a P1 displacement is its boundary triangles; a P2 boundary
+triangle is split into four linear sub-triangles on its six nodes (vertices
+and edge midpoints), so every node is a vertex of the collision mesh and the
+barrier acts on every displacement node of the boundary. Tetrahedral meshes
+(3D) only; other cells are refused in one line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from dolfinx import fem
+
+from hyperfem.errors import ParameterError
+from hyperfem.problem.protocol import SolidProblem
+
+__all__ = ["ContactSurface", "contact_surface", "global_dofs"]
+
+# Edges of the reference tetrahedron (basix numbering): edge k joins these cell-local vertices.
+_TET_EDGES = ((2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1))
+
+
+@dataclass(frozen=True)
+class ContactSurface:
+    """A boundary surface of the displacement, gathered on every rank (module docstring).
+
+    Attributes:
+        boundaries: The boundary groups it is made of.
+        X: Reference positions of the surface nodes, shape ``(n, 3)``, the same on every rank.
+        faces: Triangles, shape ``(f, 3)``, indices into :attr:`X`.
+        group: Index into :attr:`boundaries` of each node's (first) group, shape ``(n,)``.
+        global_dofs: The global (PETSc) dofs of each node's components, shape ``(n, 3)``.
+        constrained: Whether each component is a Dirichlet dof, shape ``(n, 3)``.
+        rows: This rank's owned nodes: indices into :attr:`X`.
+        dofs: Their local dofs in the unknown's array, shape ``(len(rows), 3)``.
+        comm: The communicator.
+    """
+
+    boundaries: tuple[str, ...]
+    X: np.ndarray
+    faces: np.ndarray
+    group: np.ndarray
+    global_dofs: np.ndarray
+    constrained: np.ndarray
+    rows: np.ndarray
+    dofs: np.ndarray
+    comm: MPI.Comm
+
+    @property
+    def size(self) -> int:
+        """The number of surface nodes."""
+        return len(self.X)
+
+    def displacements(self, u: np.ndarray) -> np.ndarray:
+        """The displacement of every surface node, shape ``(n, 3)``, from the unknown's local array (collective)."""
+        parts = self.comm.allgather((self.rows, u[self.dofs]))
+        out = np.empty_like(self.X)
+        for rows, values in parts:
+            out[rows] = values
+        return out
+
+    def positions(self, u: np.ndarray) -> np.ndarray:
+        """Current positions :math:`X + u` of every surface node, shape ``(n, 3)`` (collective)."""
+        return self.X + self.displacements(u)
+
+
+def global_dofs(problem: SolidProblem) -> np.ndarray:
+    """The global (PETSc) index of every local entry of the unknown's array (owned, then ghosts)."""
+    W = problem.u.function_space
+    index_map, bs = W.dofmap.index_map, W.dofmap.index_map_bs
+    blocks = index_map.local_to_global(np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32))
+    return (blocks[:, None] * bs + np.arange(bs)).ravel().astype(np.int64)
+
+
+def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndarray], spaces: list) -> np.ndarray:
+    """The linear triangles of this rank's owned facets of ``boundary``: local dofs of the x component, ``(t, 3)``."""
+    domain = problem.domain
+    mesh = domain.mesh
+    tdim = domain.tdim
+    fdim = tdim - 1
+    facets = domain.facets(boundary)
+    facets = facets[facets < mesh.topology.index_map(fdim).size_local]
+    mesh.topology.create_connectivity(fdim, tdim)
+    mesh.topology.create_connectivity(tdim, fdim)
+    f2c = mesh.topology.connectivity(fdim, tdim)
+    c2f = mesh.topology.connectivity(tdim, fdim)
+    V = spaces[0]
+    layout = V.dofmap.dof_layout
+    degree = V.element.basix_element.degree
+    out = []
+    for facet in facets:
+        cell = int(f2c.links(facet)[0])
+        local = int(np.flatnonzero(c2f.links(cell) == facet)[0])
+        cell_dofs = V.dofmap.cell_dofs(cell)
+        corner = [v for v in range(4) if v != local]  # facet k of a tetrahedron is opposite vertex k
+        vdof = [parents[0][cell_dofs[layout.entity_dofs(0, v)[0]]] for v in corner]
+        if degree == 1:
+            out.append(vdof)
+            continue
+        # P2: the edge node between corners a and b; four sub-triangles on the six nodes.
+        m01, m12, m02 = (
+            int(parents[0][cell_dofs[layout.entity_dofs(1, _TET_EDGES.index((corner[a], corner[b])))[0]]])
+            for a, b in ((0, 1), (1, 2), (0, 2))
+        )
+        out += [[vdof[0], m01, m02], [vdof[1], m12, m01], [vdof[2], m02, m12], [m01, m12, m02]]
+    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+
+
+def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str) -> ContactSurface:
+    """The collision surface of ``boundaries`` on every rank (collective; module docstring).
+
+    Args:
+        problem: The problem (its displacement space: P1 or P2 on tetrahedra).
+        boundaries: Boundary group names.
+        where: The contact, for messages.
+
+    Raises:
+        UnknownGroupError: A group does not exist (the message lists those that do).
+        ParameterError: Not a 3D tetrahedral mesh, a degree other than 1 or 2, or no facets at all.
+    """
+    domain = problem.domain
+    comm = domain.comm
+    for name in boundaries:
+        domain.facet_tag(name)  # UnknownGroupError listing the groups, on every rank
+    cell = domain.mesh.topology.cell_name()
+    if domain.gdim != 3 or cell != "tetrahedron":
+        raise ParameterError(f"{where}: mesh contact needs a 3D tetrahedral mesh, got {domain.gdim}D {cell} cells")
+    V = problem.displacement_space()
+    subs = [V.sub(i).collapse() for i in range(3)]
+    spaces = [s[0] for s in subs]
+    parents = [np.asarray(s[1], dtype=np.int64).reshape(-1) for s in subs]  # 0.11: a list of one array
+    degree = spaces[0].element.basix_element.degree
+    if degree not in (1, 2):
+        raise ParameterError(f"{where}: mesh contact supports displacement degree 1 or 2, got {degree}")
+    # The local dofs of the other components of a node: the collapsed spaces share one layout.
+    to_component = [np.full(problem.u.x.array.size, -1, dtype=np.int64) for _ in range(3)]
+    for i in range(3):
+        to_component[i][parents[0]] = parents[i]
+    gdofs = global_dofs(problem)
+    W = problem.u.function_space
+    owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+    constrained = np.zeros(problem.u.x.array.size, dtype=bool)
+    for bc in problem.bcs:
+        constrained[bc.dof_indices()[0]] = True
+
+    triangles, nodes = [], {}
+    for k, name in enumerate(boundaries):
+        tri = _facet_triangles(problem, name, parents, spaces)
+        triangles.append(gdofs[tri])
+        # The owned nodes of the group's facets (every facet's nodes, on the rank that owns each).
+        fdim = domain.tdim - 1
+        x_dofs = fem.locate_dofs_topological((V.sub(0), spaces[0]), fdim, domain.facets(name))[0]
+        for d in np.asarray(x_dofs, dtype=np.int64):
+            if d < owned and int(gdofs[d]) not in nodes:
+                nodes[int(gdofs[d])] = (k, d)
+    coordinates = spaces[0].tabulate_dof_coordinates()
+    inverse = np.full(problem.u.x.array.size, -1, dtype=np.int64)
+    inverse[parents[0]] = np.arange(len(parents[0]))
+    mine = []
+    for key, (k, d) in nodes.items():
+        comps = [int(to_component[i][d]) for i in range(3)]
+        mine.append((key, k, comps, [int(gdofs[c]) for c in comps], [bool(constrained[c]) for c in comps],
+                     coordinates[inverse[d], :3].tolist()))
+    gathered = comm.allgather(mine)
+    faces_all = np.concatenate(comm.allgather(np.concatenate(triangles) if triangles else np.zeros((0, 3))))
+    every = sorted((item for part in gathered for item in part), key=lambda item: item[0])
+    keys = np.array([item[0] for item in every], dtype=np.int64)
+    if not len(keys) or not len(faces_all):
+        raise ParameterError(f"{where}: the boundary groups {list(boundaries)} have no facets")
+    X = np.array([item[5] for item in every], dtype=float).reshape(-1, 3)
+    group = np.array([item[1] for item in every], dtype=np.int32)
+    gd = np.array([item[3] for item in every], dtype=np.int64).reshape(-1, 3)
+    fixed = np.array([item[4] for item in every], dtype=bool).reshape(-1, 3)
+    faces = np.searchsorted(keys, faces_all.astype(np.int64)).astype(np.int32)
+    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)  # a facet in two groups: once
+    faces = faces[np.sort(first)]
+    rank_keys = np.array([item[0] for item in mine], dtype=np.int64)
+    rows = np.searchsorted(keys, rank_keys).astype(np.int64)
+    dofs = np.array([item[2] for item in mine], dtype=np.int64).reshape(-1, 3)
+    return ContactSurface(tuple(boundaries), X, faces, group, gd, fixed, rows, dofs, comm)

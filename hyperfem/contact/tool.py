@@ -1,0 +1,176 @@
+r"""A rigid triangulated tool (a surgical instrument, an indenter, a jaw) read from a file, moving by a prescribed path.
+
+:class:`ToolContact` names the boundary groups of the body that the tool may
+touch and the tool's surface: triangles read from an STL, OBJ, PLY, VTK/VTU
+or gmsh file (meshio; every triangle block of the file), or given as arrays
+(:meth:`ToolContact.from_arrays`), translated by ``profile(t)·motion`` (as
+for the plane and the sphere). :meth:`~ToolContact.bind` gives a
+:class:`~hyperfem.contact.mesh_barrier.MeshBarrier` whose collision mesh is
+the body's surface plus the tool's triangles, the tool's vertices static
+within a solve (no dofs; no tool–tool pairs): point–triangle and edge–edge
+pairs between tool and body, both ways, so a sharp tool edge cannot cut
+through a body face between its nodes, nor a body node pass through a tool
+face. The tool's output force (``<name>_force``) is the force the tool
+exerts on the body.
+
+Example::
+
+    tool = hf.contact.ToolContact(["top"], file="meshes/spatula.stl", motion=(0, 0, -0.3)).bind(problem)
+    solver = hf.NewtonSolver(problem, external_energies=[tool])
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hyperfem.contact.bodies import surface_defaults
+from hyperfem.contact.ccd import CCD_SAFETY
+from hyperfem.contact.mesh_barrier import MeshBarrier, RigidSurface
+from hyperfem.contact.settings import check_contact_settings
+from hyperfem.contact.surface import contact_surface
+from hyperfem.errors import MeshError, ParameterError
+from hyperfem.loading.profiles import linear_profile
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.validation import check_finite_vector, check_name
+
+__all__ = ["ToolContact", "read_tool_surface"]
+
+
+def read_tool_surface(path: str | Path, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The points ``(k, 3)`` and triangles ``(f, 3)`` of a surface file (every triangle block; unused points dropped).
+
+    Raises:
+        MeshError: The file is missing, cannot be read, or has no triangles (one line).
+    """
+    import meshio
+
+    path = Path(path)
+    if not path.is_file():
+        raise MeshError(f"{where}: tool surface file {str(path)!r} not found")
+    try:
+        mesh = meshio.read(path)
+    except Exception as exc:  # meshio raises many kinds
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise MeshError(f"{where}: cannot read the tool surface {str(path)!r}: {first}") from None
+    blocks = [np.asarray(block.data) for block in mesh.cells if block.type == "triangle"]
+    if not blocks:
+        kinds = ", ".join(sorted({block.type for block in mesh.cells})) or "none"
+        raise MeshError(f"{where}: the tool surface {str(path)!r} has no triangles (cell types: {kinds})")
+    triangles = np.concatenate(blocks).astype(np.int64)
+    points = np.asarray(mesh.points, dtype=float)
+    if points.shape[1] == 2:
+        points = np.hstack([points, np.zeros((len(points), 1))])
+    used, faces = np.unique(triangles, return_inverse=True)
+    return points[used, :3], faces.reshape(-1, 3).astype(np.int32)
+
+
+@dataclass(frozen=True, eq=False)
+class ToolContact:
+    r"""Intersection-free contact of boundary surfaces with a rigid triangulated tool (module docstring).
+
+    Attributes:
+        boundaries: The body's boundary groups the tool may touch.
+        file: The tool's surface file (``None`` with :meth:`from_arrays`).
+        motion: The tool's translation, scaled by ``profile(t)`` (``None``: it stays).
+        profile: :math:`f(t)` of the translation (default: the load factor).
+        offset: A translation applied to the file's points once (placing the tool).
+        scale: A factor applied to the file's points once (units: a file in mm for a mesh in m: 1e-3).
+        dhat: Barrier width :math:`\hat d > 0` (``None``: 1 % of the smallest mean facet size of the groups).
+        stiffness: ``ipctk``'s barrier stiffness (``None``: :func:`~hyperfem.contact.bodies.surface_defaults`).
+        safety: The collision filter's :math:`s \in (0, 1)`.
+        name: Prefix of the output columns.
+        points: The tool's points (instead of ``file``).
+        triangles: The tool's triangles (instead of ``file``).
+
+    Raises:
+        ParameterError: A bad entry (one line), or ``ipctk`` not installed.
+        MeshError: The file is missing, unreadable or has no triangles.
+    """
+
+    boundaries: Sequence[str]
+    file: str | Path | None = None
+    motion: Sequence[float] | None = None
+    profile: Callable[[float], float] = linear_profile
+    offset: Sequence[float] | None = None
+    scale: float = 1.0
+    dhat: float | None = None
+    stiffness: float | None = None
+    safety: float = CCD_SAFETY
+    name: str = "tool"
+    points: np.ndarray | None = None
+    triangles: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        names = [self.boundaries] if isinstance(self.boundaries, str) else list(self.boundaries)
+        where = f"ToolContact on {names!r}"
+        if not names:
+            raise ParameterError(f"{where}: needs at least one boundary group")
+        for name in names:
+            check_name(name, "boundaries", "ToolContact")
+        object.__setattr__(self, "boundaries", tuple(names))
+        for key in ("motion", "offset"):
+            value = getattr(self, key)
+            if value is not None:
+                vector = check_finite_vector(value, where, key)
+                if len(vector) != 3:
+                    raise ParameterError(f"{where}: {key} must have 3 components, got {len(vector)}")
+                object.__setattr__(self, key, vector)
+        if not (isinstance(self.scale, (int, float)) and np.isfinite(self.scale) and self.scale > 0):
+            raise ParameterError(f"{where}: scale must be a number > 0, got {self.scale!r}")
+        check_contact_settings(
+            where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=0.0,
+            friction_epsilon=None, profile=self.profile, name=self.name,
+        )
+        if (self.file is None) == (self.points is None):
+            raise ParameterError(f"{where}: give either file or points and triangles")
+        if self.file is not None:
+            points, faces = read_tool_surface(self.file, where)
+        else:
+            if self.triangles is None:
+                raise ParameterError(f"{where}: points need triangles")
+            points = np.asarray(self.points, dtype=float)
+            faces = np.asarray(self.triangles, dtype=np.int64)
+            if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
+                raise ParameterError(f"{where}: points must be finite, shape (k, 3), got shape {points.shape}")
+            if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(points):
+                raise ParameterError(f"{where}: triangles must be (f, 3) indices into points")
+        points = points * float(self.scale) + (np.zeros(3) if self.offset is None else np.asarray(self.offset))
+        object.__setattr__(self, "points", points)
+        object.__setattr__(self, "triangles", np.asarray(faces, dtype=np.int32))
+
+    @classmethod
+    def from_arrays(
+        cls, boundaries: Sequence[str], points: np.ndarray, triangles: np.ndarray, **kwargs: object
+    ) -> ToolContact:
+        """A tool given as ``points`` ``(k, 3)`` and ``triangles`` ``(f, 3)`` (the other entries as for the class)."""
+        return cls(boundaries, points=points, triangles=triangles, **kwargs)  # type: ignore[arg-type]
+
+    @property
+    def where(self) -> str:
+        """The contact, for messages."""
+        return f"ToolContact on {list(self.boundaries)!r}"
+
+    @property
+    def surface(self) -> RigidSurface:
+        """The tool as a :class:`~hyperfem.contact.mesh_barrier.RigidSurface`."""
+        assert self.points is not None and self.triangles is not None
+        motion = None if self.motion is None else np.asarray(self.motion, dtype=float)
+        return RigidSurface(self.points, self.triangles, motion, self.profile)
+
+    def bind(self, problem: SolidProblem) -> MeshBarrier:
+        """The barrier of this contact on ``problem`` (collective).
+
+        Raises:
+            UnknownGroupError: A boundary group does not exist (the message lists them).
+            ParameterError: Not a 3D tetrahedral P1/P2 problem, or the tool starts touching or inside the body.
+        """
+        surface = contact_surface(problem, self.boundaries, self.where)
+        dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
+        return MeshBarrier(
+            self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
+            tool=self.surface,
+        )

@@ -1,0 +1,277 @@
+r"""Mesh contact (issue 19): two bodies, a rigid triangulated tool, obstacles pushed into a resting body.
+
+The patch test: two unit cubes of one mesh (``lower`` below :math:`z = 0`,
+``upper`` above :math:`z = g`), meshed independently (non-matching facets),
+rollers on :math:`x = 0` and :math:`y = 0`, the bottom of ``lower`` held in
+:math:`z`, the top of ``upper`` pushed down by :math:`\delta`. Frictionless,
+the exact state is homogeneous uniaxial compression of both cubes with free
+lateral faces: the force through the interface equals the reaction at the
+top and :math:`|P_{zz}(\lambda)|` (``test_contact.py``) with
+:math:`2\lambda = 2 + g - \delta - \bar g`, :math:`\bar g` the mean final gap.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+ipctk = pytest.importorskip("ipctk")
+
+import hyperfem as hf  # noqa: E402
+from dolfinx import mesh as dmesh  # noqa: E402
+from hyperfem.contact import PlaneContact, SurfaceContact, ToolContact  # noqa: E402
+from hyperfem.contact.mesh_barrier import ray_hits  # noqa: E402
+from hyperfem.errors import MeshError, ParameterError, UnknownGroupError  # noqa: E402
+from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
+from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
+
+PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
+TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-12}
+GAP, DHAT = 5e-4, 1e-3
+
+
+def _uniaxial_pzz(stretch: float) -> float:
+    """:math:`P_{zz}` of compressible Neo-Hookean in uniaxial stress (lateral stretch from :math:`P_{xx} = 0`)."""
+    from scipy.optimize import brentq
+
+    mu, lam = PARAMS.mu, PARAMS.lmbda
+    lt = brentq(lambda s: mu * s + (lam * np.log(stretch * s * s) - mu) / s, 0.5, 2.0)
+    return mu * stretch + (lam * np.log(stretch * lt * lt) - mu) / stretch
+
+
+def _watch(solver, contact) -> list[float]:
+    """The smallest pair distance of every accepted Newton iterate."""
+    seen: list[float] = []
+    solver.snes.setMonitor(lambda snes, it, norm: seen.append(contact.min_distance(snes.getSolution())))
+    return seen
+
+
+def _stacked(comm=MPI.COMM_WORLD, degree=1, delta=0.2, h=(0.5, 0.34)):
+    domain = hf.mesh.stacked_blocks_mesh(h[0], h[1], GAP, comm=comm)
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("lower_bottom", [0.0], components=[2]),
+        hf.PrescribedDisplacement("upper_top", [-delta], components=[2]),
+    ]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs, degree=degree)
+    contact = SurfaceContact(["lower_top", "upper_bottom"], dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    return problem, contact, iterates
+
+
+def test_two_blocks_with_non_matching_meshes_transmit_the_uniaxial_stress():
+    """The patch test (module docstring): force through the interface = top reaction to 1e-8, = |P_zz| to 0.1 %."""
+    delta = 0.2
+    problem, contact, iterates = _stacked(delta=delta)
+    reaction = ReactionForce(problem, "upper_top")()
+    force = contact.force(group=0)  # on lower_top, from the upper cube: downward
+    assert force[2] == pytest.approx(reaction[2], rel=1e-8) and force[2] < 0.0
+    surface = contact.surface
+    x = surface.positions(problem.u.x.array)
+    lower, upper = x[surface.group == 0, 2], x[surface.group == 1, 2]
+    stretch = (2.0 + GAP - delta - (upper.mean() - lower.mean())) / 2.0
+    assert -reaction[2] == pytest.approx(-_uniaxial_pzz(stretch), rel=1e-3)
+    # Uniform pressure: both faces stay flat to a fraction of d-hat, the gap stays in (0, d-hat).
+    assert lower.std() < 0.3 * DHAT and upper.std() < 0.3 * DHAT
+    assert 0.0 < contact.min_distance() < DHAT and contact.active_count() > 0
+    assert min(iterates) > 0.0 and not contact.intersecting()
+
+
+def _stacked_state(comm) -> tuple[float, float, float]:
+    problem, contact, _ = _stacked(comm)
+    return float(contact.force(group=0)[2]), float(problem.u.x.petsc_vec.norm()), contact.min_distance()
+
+
+def test_two_blocks_one_rank_equals_two_ranks():
+    """Force, displacement norm and smallest gap of the patch test on 2 ranks equal 1 rank's to 1e-10."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    pc_setup_seconds()
+    one = _stacked_state(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    assert _stacked_state(comm) == pytest.approx(one, rel=1e-10)
+
+
+def test_p2_surfaces_balance_the_reaction():
+    """P2: every boundary node (vertices and edge midpoints) is a vertex of the collision mesh; equilibrium holds."""
+    problem, contact, iterates = _stacked(degree=2, delta=0.1, h=(1.0, 0.6))
+    reaction = ReactionForce(problem, "upper_top")()
+    assert contact.force(group=0)[2] == pytest.approx(reaction[2], rel=1e-8)
+    assert min(iterates) > 0.0 and not contact.intersecting()
+
+
+# -- a rigid triangulated tool -------------------------------------------------------------------------------------
+
+
+def _cube(comm, n: int):
+    mesh = dmesh.create_unit_cube(comm, n, n, n)
+    groups = {
+        "bottom": lambda x: np.isclose(x[2], 0.0),
+        "top": lambda x: np.isclose(x[2], 1.0),
+        "x0": lambda x: np.isclose(x[0], 0.0),
+        "y0": lambda x: np.isclose(x[1], 0.0),
+    }
+    return hf.Domain.from_locators(mesh, groups, source=f"cube({n})")
+
+
+def _pressed_cube(comm=MPI.COMM_WORLD, delta=0.2, top=None):
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("top", [-delta], components=[2]),
+    ]
+    return hf.HyperelasticProblem(_cube(comm, 3), lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+
+
+PLATE = np.array([[-1.0, -1.0, -DHAT / 2], [3.0, -1.0, -DHAT / 2], [3.0, 3.0, -DHAT / 2], [-1.0, 3.0, -DHAT / 2]])
+PLATE_TRIANGLES = np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def test_flat_tool_is_the_plane():
+    """A two-triangle plate under the pressed cube: force = reaction to 1e-8, = |P_zz| of the height to 0.1 %."""
+    problem = _pressed_cube()
+    tool = ToolContact.from_arrays(["bottom"], PLATE, PLATE_TRIANGLES, dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[tool])
+    iterates = _watch(solver, tool)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    reaction = ReactionForce(problem, "top")()
+    assert tool.force()[2] == pytest.approx(-reaction[2], rel=1e-8)
+    bottom = tool.surface.positions(problem.u.x.array)[:, 2]
+    assert tool.force()[2] == pytest.approx(-_uniaxial_pzz(0.8 - bottom.mean()), rel=1e-3)
+    assert min(iterates) > 0.0 and not tool.intersecting()
+
+
+def test_tool_from_an_stl_file_equals_the_arrays(tmp_path):
+    """The same plate written as STL (meshio) and read back: the same points and triangles, placed by offset/scale."""
+    import meshio
+
+    path = tmp_path / "plate.stl"
+    meshio.write_points_cells(path, PLATE * 1e3, [("triangle", PLATE_TRIANGLES)], binary=True)  # in mm
+    read = ToolContact(["bottom"], file=path, scale=1e-3, offset=(0.0, 0.0, 0.0))
+    given = ToolContact.from_arrays(["bottom"], PLATE, PLATE_TRIANGLES)
+    order = np.lexsort(read.points.T)
+    assert np.allclose(read.points[order], given.points[np.lexsort(given.points.T)], atol=1e-9)
+    assert len(read.triangles) == 2
+
+
+def test_bad_tool_input_is_one_line(tmp_path):
+    """Missing file, a file without triangles, an unknown group, a tool inside the body, bad entries: one line."""
+    import meshio
+
+    with pytest.raises(MeshError, match="not found"):
+        ToolContact(["bottom"], file=tmp_path / "missing.stl")
+    lines = tmp_path / "lines.vtk"
+    meshio.write_points_cells(lines, PLATE, [("line", np.array([[0, 1]]))])
+    with pytest.raises(MeshError, match="no triangles"):
+        ToolContact(["bottom"], file=lines)
+    with pytest.raises(ParameterError, match="dhat must be"):
+        ToolContact.from_arrays(["bottom"], PLATE, PLATE_TRIANGLES, dhat=-1.0)
+    with pytest.raises(ParameterError, match="either file or points"):
+        ToolContact(["bottom"])
+    problem = _pressed_cube()
+    with pytest.raises(UnknownGroupError, match="available: bottom, top, x0, y0"):
+        ToolContact.from_arrays(["floor"], PLATE, PLATE_TRIANGLES).bind(problem)
+    inside = PLATE + np.array([0.05, 0.13, 0.5])  # a plate through the middle of the cube
+    with pytest.raises(ParameterError, match="intersect at the start"):
+        ToolContact.from_arrays(["bottom", "top", "x0", "y0"], inside, PLATE_TRIANGLES).bind(problem)
+    touching = PLATE + np.array([0.0, 0.0, DHAT / 2])  # the plane z = 0 of the bottom face
+    with pytest.raises(ParameterError, match=r"start in contact: the node at \(.*\) is at distance 0"):
+        ToolContact.from_arrays(["bottom"], touching, PLATE_TRIANGLES).bind(problem)
+    with pytest.raises(ParameterError, match="named twice"):
+        SurfaceContact(["bottom", "bottom"])
+
+
+def test_ray_hits():
+    """A ray straight down onto the unit triangle: the distance and the triangle; a ray beside it: none."""
+    triangle = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    distance, index = ray_hits(np.array([[0.2, 0.2, 0.5], [0.9, 0.9, 0.5]]), np.array([0.0, 0.0, -1.0]), triangle)
+    assert distance[0] == pytest.approx(0.5) and index[0] == 0
+    assert np.isinf(distance[1]) and index[1] == -1
+
+
+# -- obstacles pushed into a body that rests on them -----------------------------------------------------------------
+
+
+def test_plane_pushed_into_a_resting_body_equals_the_body_pushed_onto_it():
+    """The plane moved 0.1 up into the cube resting on it (top held) = the top pushed 0.1 down onto the fixed plane.
+
+    The predictor carries the bottom nodes the plane would overrun with it
+    (:meth:`~hyperfem.solver.external.ExternalTerms.carry`): one step, where
+    refusing the start used to cut back to the minimum increment.
+    """
+    moved = _pressed_cube(delta=0.0)
+    plane = PlaneContact("bottom", point=(0.0, 0.0, -DHAT / 2), normal=(0.0, 0.0, 1.0), dhat=DHAT,
+                         motion=(0.0, 0.0, 0.1)).bind(moved)
+    solver = hf.NewtonSolver(moved, TIGHT, external_energies=[plane])
+    iterates = []
+    solver.snes.setMonitor(lambda snes, it, norm: iterates.append(plane.min_distance(snes.getSolution())))
+    records = hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.5, max_increment=0.5))
+    assert sum(r.rejected for r in records) == 0
+    fixed = _pressed_cube(delta=0.1)
+    still = PlaneContact("bottom", point=(0.0, 0.0, -DHAT / 2), normal=(0.0, 0.0, 1.0), dhat=DHAT).bind(fixed)
+    hf.solve_quasistatic(hf.NewtonSolver(fixed, TIGHT, external_energies=[still]),
+                         stepping=hf.LoadStepping(initial_increment=0.5, max_increment=0.5))
+    assert plane.force()[2] == pytest.approx(still.force()[2], rel=1e-6)
+    assert min(iterates) > 0.0
+
+
+def _icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
+    """A unit icosphere: the icosahedron, each triangle split in four ``level`` times, projected on the sphere."""
+    t = (1.0 + 5.0**0.5) / 2.0
+    points = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+              (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
+             (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    v = [np.array(p, dtype=float) / np.linalg.norm(p) for p in points]
+    middle: dict[tuple[int, int], int] = {}
+
+    def mid(a: int, b: int) -> int:
+        key = (min(a, b), max(a, b))
+        if key not in middle:
+            m = v[a] + v[b]
+            v.append(m / np.linalg.norm(m))
+            middle[key] = len(v) - 1
+        return middle[key]
+
+    for _ in range(level):
+        middle.clear()
+        split = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            split += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = split
+    return np.array(v), np.array(faces)
+
+
+def _indented(comm, depth=0.25):
+    """A slab 1 x 1 x 0.5 clamped at the bottom; a rigid sphere (R = 0.2, 0.01 above it) pushed ``depth`` into it."""
+    mesh = dmesh.create_box(comm, [np.zeros(3), np.array([1.0, 1.0, 0.5])], [6, 6, 3])
+    groups = {"bottom": lambda x: np.isclose(x[2], 0.0), "top": lambda x: np.isclose(x[2], 0.5)}
+    domain = hf.Domain.from_locators(mesh, groups, source="slab")
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS),
+                                     bcs=[hf.PrescribedDisplacement("bottom", [0.0, 0.0, 0.0])])
+    points, faces = _icosphere(2)
+    sphere = points * 0.2 + np.array([0.5, 0.5, 0.71])
+    tool = ToolContact.from_arrays(["top"], sphere, faces, motion=(0.0, 0.0, -(0.01 + depth)), dhat=5e-3)
+    barrier = tool.bind(problem)
+    solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-9, "snes_atol": 1e-12}, external_energies=[barrier])
+    iterates = _watch(solver, barrier)
+    steps = hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.1, max_increment=0.1))
+    return problem, barrier, iterates, steps
+
+
+def test_tool_pushed_half_into_the_tissue_never_penetrates():
+    """The sphere pushed to half the slab's thickness: every iterate and step intersection-free, force = reaction."""
+    problem, tool, iterates, steps = _indented(MPI.COMM_WORLD)
+    assert tool.time == 1.0
+    reaction = ReactionForce(problem, "bottom")()
+    assert tool.force() == pytest.approx(-reaction, rel=1e-6, abs=1e-8 * abs(reaction[2]))
+    assert tool.force()[2] < -0.1 and min(iterates) > 0.0 and not tool.intersecting()
+    lowest = tool.surface.positions(problem.u.x.array)[:, 2].min()
+    assert lowest < 0.5 - 0.2  # the top surface went down with the tool, half the thickness (0.25) less d-hat
