@@ -80,6 +80,7 @@ demos: bootstrap
 	$(PY) demos/methods.py --case bend --t-end 0.1
 	$(PY) demos/realtime.py --steps 90
 	$(PY) demos/contact.py
+	$(PY) demos/surgery.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)

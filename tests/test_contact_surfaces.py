@@ -22,6 +22,7 @@ import hyperfem as hf  # noqa: E402
 from dolfinx import mesh as dmesh  # noqa: E402
 from hyperfem.contact import PlaneContact, SurfaceContact, ToolContact  # noqa: E402
 from hyperfem.contact.mesh_barrier import ray_hits  # noqa: E402
+from hyperfem.contact.shapes import icosphere  # noqa: E402
 from hyperfem.errors import MeshError, ParameterError, UnknownGroupError  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
 from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
@@ -220,35 +221,6 @@ def test_plane_pushed_into_a_resting_body_equals_the_body_pushed_onto_it():
     assert min(iterates) > 0.0
 
 
-def _icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
-    """A unit icosphere: the icosahedron, each triangle split in four ``level`` times, projected on the sphere."""
-    t = (1.0 + 5.0**0.5) / 2.0
-    points = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
-              (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
-    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
-             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
-             (6, 2, 10), (8, 6, 7), (9, 8, 1)]
-    v = [np.array(p, dtype=float) / np.linalg.norm(p) for p in points]
-    middle: dict[tuple[int, int], int] = {}
-
-    def mid(a: int, b: int) -> int:
-        key = (min(a, b), max(a, b))
-        if key not in middle:
-            m = v[a] + v[b]
-            v.append(m / np.linalg.norm(m))
-            middle[key] = len(v) - 1
-        return middle[key]
-
-    for _ in range(level):
-        middle.clear()
-        split = []
-        for a, b, c in faces:
-            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
-            split += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
-        faces = split
-    return np.array(v), np.array(faces)
-
-
 def _indented(comm, depth=0.25):
     """A slab 1 x 1 x 0.5 clamped at the bottom; a rigid sphere (R = 0.2, 0.01 above it) pushed ``depth`` into it."""
     mesh = dmesh.create_box(comm, [np.zeros(3), np.array([1.0, 1.0, 0.5])], [6, 6, 3])
@@ -256,7 +228,7 @@ def _indented(comm, depth=0.25):
     domain = hf.Domain.from_locators(mesh, groups, source="slab")
     problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS),
                                      bcs=[hf.PrescribedDisplacement("bottom", [0.0, 0.0, 0.0])])
-    points, faces = _icosphere(2)
+    points, faces = icosphere(2)
     sphere = points * 0.2 + np.array([0.5, 0.5, 0.71])
     tool = ToolContact.from_arrays(["top"], sphere, faces, motion=(0.0, 0.0, -(0.01 + depth)), dhat=5e-3)
     barrier = tool.bind(problem)

@@ -185,3 +185,20 @@ def test_contact_demo(shared_tmp, capsys):
     if MPI.COMM_WORLD.rank == 0:
         assert "closed form 0.239337 (0.007 %)" in capsys.readouterr().out
 
+
+
+FORCE_SURGERY = [3.8331503955e-4, -2.7248578910e-4, -6.815457776841e-2]  # --n 4 --steps 4, 1 rank (= 2 ranks)
+
+
+def test_surgery_demo(shared_tmp, capsys):
+    """The virtual-surgery demo (issue 19), small: the probe indents and drags; force = -reaction at every step,
+    no intersection after any step, a positive gap; the regression force from a trusted run (1 rank = 2 ranks)."""
+    pytest.importorskip("ipctk")
+    result = load_demo("surgery").main(["--output", str(shared_tmp), "--n", "4", "--steps", "4"])
+    assert result["completed"] and result["time"][-1] == 1.0
+    assert result["balance"] < 1e-6 and not result["intersecting"] and result["min_distance"] > 0.0
+    assert result["force"][-1][2] < 0.0
+    assert result["force"][-1] == pytest.approx(FORCE_SURGERY, rel=1e-6, abs=1e-7)
+    assert json.loads((shared_tmp / "surgery.json").read_text())["force"] == result["force"]
+    if MPI.COMM_WORLD.rank == 0:
+        assert "intersecting: False" in capsys.readouterr().out

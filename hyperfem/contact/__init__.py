@@ -34,6 +34,7 @@ from hyperfem.contact.nodes import BoundaryNodes, boundary_nodes, facet_size
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.mesh_barrier import MeshBarrier, MeshCollisionFilter, RigidSurface
 from hyperfem.contact.surface import ContactSurface, contact_surface
+from hyperfem.contact.shapes import icosphere
 from hyperfem.contact.tool import ToolContact, read_tool_surface
 from hyperfem.contact.obstacles import Ball, HalfSpace
 from hyperfem.contact.plane import PlaneBarrier, PlaneContact
@@ -69,6 +70,7 @@ __all__ = [
     "default_dhat",
     "default_stiffness",
     "facet_size",
+    "icosphere",
     "plane_step_fraction",
     "project_psd",
     "require_ipctk",

@@ -84,7 +84,8 @@ class RigidSurface:
     Args:
         points: Vertex positions at ``profile(t) = 0``, shape ``(k, 3)``.
         faces: Triangles, shape ``(f, 3)``, indices into ``points``.
-        motion: The translation :math:`m` (``None``: it stays).
+        motion: The translation :math:`m` (``None``: it stays), or a path: a
+            callable giving the translation at ``t`` (then ``profile`` is not used).
         profile: :math:`f(t)` of the translation.
     """
 
@@ -92,18 +93,20 @@ class RigidSurface:
         self,
         points: np.ndarray,
         faces: np.ndarray,
-        motion: np.ndarray | None,
+        motion: np.ndarray | Callable[[float], Any] | None,
         profile: Callable[[float], float],
     ):
         self.points = np.asarray(points, dtype=float).reshape(-1, 3)
         self.faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
-        self.motion = None if motion is None else np.asarray(motion, dtype=float)
+        self.motion = motion if motion is None or callable(motion) else np.asarray(motion, dtype=float)
         self.profile = profile
 
     def offset(self, t: float) -> np.ndarray:
         """The translation :math:`f(t)\\,m` at time (load factor) ``t``."""
         if self.motion is None:
             return np.zeros(3)
+        if callable(self.motion):
+            return np.asarray(self.motion(t), dtype=float).reshape(3)
         return float(self.profile(t)) * self.motion
 
     def vertices(self, t: float) -> np.ndarray:

@@ -75,7 +75,8 @@ class ToolContact:
     Attributes:
         boundaries: The body's boundary groups the tool may touch.
         file: The tool's surface file (``None`` with :meth:`from_arrays`).
-        motion: The tool's translation, scaled by ``profile(t)`` (``None``: it stays).
+        motion: The tool's translation, scaled by ``profile(t)`` (``None``: it stays), or a path: a callable
+            giving the translation at ``t`` (indent, then drag: any piecewise path; ``profile`` is then unused).
         profile: :math:`f(t)` of the translation (default: the load factor).
         offset: A translation applied to the file's points once (placing the tool).
         scale: A factor applied to the file's points once (units: a file in mm for a mesh in m: 1e-3).
@@ -93,7 +94,7 @@ class ToolContact:
 
     boundaries: Sequence[str]
     file: str | Path | None = None
-    motion: Sequence[float] | None = None
+    motion: Sequence[float] | Callable[[float], Sequence[float]] | None = None
     profile: Callable[[float], float] = linear_profile
     offset: Sequence[float] | None = None
     scale: float = 1.0
@@ -112,9 +113,13 @@ class ToolContact:
         for name in names:
             check_name(name, "boundaries", "ToolContact")
         object.__setattr__(self, "boundaries", tuple(names))
+        if callable(self.motion):
+            start = np.asarray(self.motion(0.0), dtype=float)
+            if start.shape != (3,) or not np.all(np.isfinite(start)):
+                raise ParameterError(f"{where}: a motion path must give 3 finite components, got {start!r} at t = 0")
         for key in ("motion", "offset"):
             value = getattr(self, key)
-            if value is not None:
+            if value is not None and not callable(value):
                 vector = check_finite_vector(value, where, key)
                 if len(vector) != 3:
                     raise ParameterError(f"{where}: {key} must have 3 components, got {len(vector)}")
@@ -158,7 +163,7 @@ class ToolContact:
     def surface(self) -> RigidSurface:
         """The tool as a :class:`~hyperfem.contact.mesh_barrier.RigidSurface`."""
         assert self.points is not None and self.triangles is not None
-        motion = None if self.motion is None else np.asarray(self.motion, dtype=float)
+        motion = self.motion if self.motion is None or callable(self.motion) else np.asarray(self.motion, dtype=float)
         return RigidSurface(self.points, self.triangles, motion, self.profile)
 
     def bind(self, problem: SolidProblem) -> MeshBarrier:
