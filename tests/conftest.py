@@ -25,6 +25,15 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(skip)
 
 
+def pytest_collection_finish(session):
+    # Everything alive once the test modules are imported (dolfinx, ufl, basix, numpy, the
+    # test modules and their parameters) lives to the end of the session. Moving it to the
+    # permanent generation keeps the gc.collect() after each test from traversing it every
+    # time (about 45 ms a test, some 40 s a run); what the tests create is collected as before.
+    gc.collect()
+    gc.freeze()
+
+
 @pytest.fixture(autouse=True)
 def _mpi_teardown():
     yield
