@@ -145,12 +145,17 @@ def _check_uniaxial(domain, problem, u, lam: float, K: float, law: str) -> None:
 
 
 MIXED_CASES = [(n, lam, law) for n, lam in [(2, 2.0), (2, 0.5), (4, 2.0), (4, 0.6)] for law in LAWS]
-MIXED_CASES.append((8, 2.0, "log"))  # the failing row of issue 8
+# The failing row of issue 8 (the slowest case): serial only. Under mpiexec -n 2 the three-field
+# solve on a partitioned cube is covered by the 2x2x2 and 4x4x4 rows above (same law, same stretch).
+MIXED_CASES.append(pytest.param(8, 2.0, "log", marks=pytest.mark.serial))
 
 
-@pytest.mark.parametrize(
-    ("n", "lam", "law"), MIXED_CASES, ids=[f"n{n}-stretch{lam}-{law}" for n, lam, law in MIXED_CASES]
-)
+def _case_id(case) -> str:
+    n, lam, law = case.values if hasattr(case, "values") else case
+    return f"n{n}-stretch{lam}-{law}"
+
+
+@pytest.mark.parametrize(("n", "lam", "law"), MIXED_CASES, ids=[_case_id(c) for c in MIXED_CASES])
 def test_mixed_uniaxial(n, lam, law):
     """Three-field formulation, :math:`K/\\mu = 10^3`: homogeneous at every node, (a) and (b)."""
     K = 1e3

@@ -47,6 +47,10 @@ def _max_nodal(block, comm, array) -> float:
     return comm.allreduce(float(np.sqrt((d**2).sum(axis=1)).max(initial=0.0)), op=MPI.MAX)
 
 
+# Serial only: under mpiexec -n 2 the same muscle problem, integrated by backward Euler from its passive
+# equilibrium, is checked against the serial numbers by test_demo_short_window (and the static
+# solution of demos/muscle.py by tests/test_muscle_demo.py).
+@pytest.mark.serial
 def test_quasistatic_limit(muscle):
     r"""As :math:`\rho \to 0` the backward-Euler trajectory tends to the static equilibria, linearly in :math:`\rho`.
 
