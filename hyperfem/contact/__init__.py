@@ -1,20 +1,31 @@
-r"""Contact: bodies that touch rigid obstacles, intersection-free, as one more term of the energy.
+r"""Contact: bodies that touch obstacles, tools, each other and themselves, intersection-free, in the one energy.
 
 The total potential becomes :math:`\Pi(u) = \Pi_\text{elastic}(u) - W_\text{ext}(u) + \kappa B(x(u))`,
-:math:`B` the barrier of Incremental Potential Contact (Li et al. 2020) over the
-distances between the contact nodes and the obstacle. This first slice of
-issue 19: a rigid plane (half-space) or sphere with a prescribed translation, frictionless.
+:math:`B` the barrier of Incremental Potential Contact (Li et al. 2020) over
+the distances closer than :math:`\hat d`. Each contact's ``.bind(problem)``
+gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
+``NewtonSolver(problem, external_energies=[...])`` and read by outputs
+(``Recorder(barrier)``).
 
-* :class:`PlaneContact` — the contact (boundary, plane, :math:`\hat d`,
-  :math:`\kappa`); ``.bind(problem)`` gives the :class:`PlaneBarrier`, passed to
-  ``NewtonSolver(problem, external_energies=[...])`` and read by outputs
-  (``Recorder(barrier)``);
-* :mod:`~hyperfem.contact.barrier` — the IPC barrier from ``ipctk`` (the
-  optional extra ``hyperfem[contact]``);
-* :mod:`~hyperfem.contact.ccd` — the collision-free step filter;
-* :mod:`~hyperfem.contact.obstacles`, :mod:`~hyperfem.contact.nodes`,
-  :mod:`~hyperfem.contact.defaults` — the plane, the contact nodes, the default
-  :math:`\hat d` and :math:`\kappa`.
+* Analytic rigid obstacles, per node (no gathering): :class:`PlaneContact`
+  (a half-space) and :class:`SphereContact`, with a prescribed translation
+  and smoothed Coulomb friction (:mod:`~hyperfem.contact.nodal`,
+  :mod:`~hyperfem.contact.plane`, :mod:`~hyperfem.contact.sphere`,
+  :mod:`~hyperfem.contact.ccd`, :mod:`~hyperfem.contact.obstacles`).
+* Between surface triangles, from ``ipctk`` (:mod:`~hyperfem.contact.mesh_barrier`,
+  the surface gathered by :mod:`~hyperfem.contact.surface`):
+  :class:`SurfaceContact` (self-contact, two bodies of one mesh;
+  :mod:`~hyperfem.contact.bodies`) and :class:`ToolContact` (a rigid
+  triangulated tool from an STL/OBJ/gmsh file or arrays, moving on a path;
+  :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`).
+* :mod:`~hyperfem.contact.barrier` (the nodal barrier function),
+  :mod:`~hyperfem.contact.defaults` (:math:`\hat d`, :math:`\kappa`),
+  :mod:`~hyperfem.contact.nodes` (contact nodes), :mod:`~hyperfem.contact.settings`
+  (the shared checks).
+
+An obstacle pushed into a body that already touches it is handled by the
+solver's predictor, which carries the overrun nodes with it
+(:meth:`~hyperfem.solver.external.ExternalTerms.carry`).
 
 Importing this package does not import ``ipctk``; constructing a contact
 without it raises a one-line :class:`~hyperfem.errors.ParameterError`.

@@ -1,0 +1,144 @@
+"""Mesh contact (``ipctk``): what the barrier's terms cost per Newton iteration, against the elastic iteration.
+
+A unit cube of ``n`` x ``n`` x ``n`` boxes (6 P1 tetrahedra each) whose
+*whole* boundary is the collision surface (``6 n^2 + 2`` vertices: 9,602 at
+``n = 40``), resting at ``dhat/2`` on a rigid two-triangle plate
+(``ToolContact``; ``n^2 + ...`` bottom vertices in contact, every pair of the
+bottom face active). Per mesh size, one JSON object with the seconds of one
+evaluation of each contact term at that state (best of ``--repeat``):
+
+* ``gather``: the surface positions (one ``allgather``),
+* ``pairs``: the broad phase (``HashGrid`` candidates) and the active pairs,
+* ``energy``, ``gradient`` (added to a residual), ``hessian`` (the projected
+  Hessian from ``ipctk`` and its insertion into the tangent),
+* ``ccd``: the collision filter of a Newton step (``AdditiveCCD``),
+
+against the elastic terms of the same iteration: ``residual`` and
+``tangent`` assembly and one ``linear_solve`` with the solver's own linear
+solver (MUMPS LU below 10^4 unknowns, CG + GAMG above). ``ratio`` is the
+contact terms (pairs + energy + gradient + hessian + ccd, the pairs counted
+once since they are cached per state) over the elastic ones.
+
+    python benchmarks/contact_mesh.py [--sizes 10 20 40] [--repeat 3]
+    mpiexec -n 2 python benchmarks/contact_mesh.py
+"""
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+
+from mpi4py import MPI  # noqa: E402, I001  (before dolfinx/petsc4py)
+
+import numpy as np  # noqa: E402
+import dolfinx.fem.petsc as fpetsc  # noqa: E402
+from dolfinx import fem  # noqa: E402
+from dolfinx import mesh as dmesh  # noqa: E402
+
+import hyperfem as hf  # noqa: E402
+from hyperfem.contact import ToolContact  # noqa: E402
+
+PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
+DHAT = 1e-3
+
+
+def _best(function, repeat: int) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        MPI.COMM_WORLD.Barrier()
+        start = time.perf_counter()
+        function()
+        best = min(best, time.perf_counter() - start)
+    return MPI.COMM_WORLD.allreduce(best, op=MPI.MAX)
+
+
+def measure(n: int, repeat: int) -> dict:
+    comm = MPI.COMM_WORLD
+    mesh = dmesh.create_unit_cube(comm, n, n, n)
+    groups = {"surface": lambda x: np.full(x.shape[1], True), "top": lambda x: np.isclose(x[2], 1.0)}
+    domain = hf.Domain.from_locators(mesh, groups, source=f"cube({n})")
+    bcs = [hf.PrescribedDisplacement("top", [0.0, 0.0, -0.01])]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+    plate = np.array([[-1.0, -1.0, -DHAT / 2], [3.0, -1.0, -DHAT / 2], [3.0, 3.0, -DHAT / 2], [-1.0, 3.0, -DHAT / 2]])
+    tool = ToolContact.from_arrays(["surface"], plate, np.array([[0, 1, 2], [0, 2, 3]]), dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, external_energies=[tool])
+    u = problem.u.x.array
+    nlp = solver._nlp
+    A, b = nlp.A, nlp.b
+    step = problem.u.x.petsc_vec.duplicate()
+    step.array_w[:] = 0.0
+    step.array_w[tool.surface.dofs[:, 2]] = 0.5 * DHAT  # every surface node 0.5 dhat down: the filter cuts it
+
+    def pairs():
+        tool._cache = None
+        tool._collisions(tool.vertices(u))
+
+    residual_form = fem.form(problem.residual)
+
+    def elastic_residual():
+        with b.localForm() as local:
+            local.set(0.0)
+        fpetsc.assemble_vector(b, residual_form)
+
+    def tangent():
+        A.zeroEntries()
+        fpetsc.assemble_matrix(A, nlp.J, bcs=problem.bcs)
+        A.assemble()
+
+    tangent()
+    solver.external.add_tangent(A)
+    ksp = solver.snes.getKSP()
+    ksp.setOperators(A, A)
+    du = step.duplicate()
+
+    def solve():
+        ksp.setOperators(A, A)
+        ksp.solve(b, du)
+
+    elastic_residual()
+    timings = {
+        "gather": _best(lambda: tool.vertices(u), repeat),
+        "pairs": _best(pairs, repeat),
+        "energy": _best(lambda: tool.energy(u), repeat),
+        "gradient": _best(lambda: solver.external.add_residual(b), repeat),
+        "hessian": _best(lambda: solver.external.add_tangent(A), repeat),
+        "ccd": _best(lambda: tool.step_filter.step_fraction(problem.u.x.petsc_vec, step), repeat),
+        "residual": _best(elastic_residual, repeat),
+        "tangent": _best(tangent, repeat),
+    }
+    tangent()
+    solver.external.add_tangent(A)
+    timings["linear_solve"] = _best(solve, repeat)
+    contact = sum(timings[k] for k in ("pairs", "energy", "gradient", "hessian", "ccd"))
+    elastic = timings["residual"] + timings["tangent"] + timings["linear_solve"]
+    W = problem.u.function_space
+    return {
+        "n": n,
+        "ranks": comm.size,
+        "unknowns": W.dofmap.index_map.size_global * W.dofmap.index_map_bs,
+        "surface_vertices": tool.surface.size,
+        "active_pairs": tool.active_count(),
+        "seconds": {k: round(v, 5) for k, v in timings.items()},
+        "contact": round(contact, 5),
+        "elastic": round(elastic, 5),
+        "ratio": round(contact / elastic, 3),
+    }
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20, 40])
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    for n in args.sizes:
+        result = measure(n, args.repeat)
+        if MPI.COMM_WORLD.rank == 0:
+            print(json.dumps(result), flush=True)
+
+
+if __name__ == "__main__":
+    main()
