@@ -247,3 +247,31 @@ def test_tool_pushed_half_into_the_tissue_never_penetrates():
     assert tool.force()[2] < -0.1 and min(iterates) > 0.0 and not tool.intersecting()
     lowest = tool.surface.positions(problem.u.x.array)[:, 2].min()
     assert lowest < 0.5 - 0.2  # the top surface went down with the tool, half the thickness (0.25) less d-hat
+
+
+def test_self_contact_of_one_group_equals_the_pair():
+    """One boundary group holding both facing faces (self-contact of a group) gives the pair's state to 1e-10."""
+    delta = 0.2
+    pair_problem, pair, _ = _stacked(delta=delta)
+    stacked = hf.mesh.stacked_blocks_mesh(0.5, 0.34, GAP)
+    groups = {
+        "facing": lambda x: np.isclose(x[2], 0.0) | np.isclose(x[2], GAP),
+        "x0": lambda x: np.isclose(x[0], 0.0),
+        "y0": lambda x: np.isclose(x[1], 0.0),
+        "lower_bottom": lambda x: np.isclose(x[2], -1.0),
+        "upper_top": lambda x: np.isclose(x[2], 1.0 + GAP),
+    }
+    domain = hf.Domain.from_locators(stacked.mesh, groups, source="stacked blocks, one facing group")
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("lower_bottom", [0.0], components=[2]),
+        hf.PrescribedDisplacement("upper_top", [-delta], components=[2]),
+    ]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+    contact = SurfaceContact(["facing"], dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    assert contact.surface.size == pair.surface.size and contact.active_count() == pair.active_count()
+    reaction = ReactionForce(pair_problem, "upper_top")()
+    assert ReactionForce(problem, "upper_top")() == pytest.approx(reaction, rel=1e-10, abs=1e-10 * abs(reaction[2]))
