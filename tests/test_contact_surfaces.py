@@ -98,6 +98,7 @@ def test_two_blocks_one_rank_equals_two_ranks():
     assert _stacked_state(comm) == pytest.approx(one, rel=1e-10)
 
 
+@pytest.mark.serial  # the 2-rank path of the surface gathering is checked by the P1 patch test, 1 rank = 2 ranks
 def test_p2_surfaces_balance_the_reaction():
     """P2: every boundary node (vertices and edge midpoints) is a vertex of the collision mesh; equilibrium holds."""
     problem, contact, iterates = _stacked(degree=2, delta=0.1, h=(1.0, 0.6))
@@ -238,6 +239,7 @@ def _indented(comm, depth=0.25):
     return problem, barrier, iterates, steps
 
 
+@pytest.mark.serial  # a tool carried by the predictor on 2 ranks: the surgery demo's test (tests/test_demos.py)
 def test_tool_pushed_half_into_the_tissue_never_penetrates():
     """The sphere pushed to half the slab's thickness: every iterate and step intersection-free, force = reaction."""
     problem, tool, iterates, steps = _indented(MPI.COMM_WORLD)
