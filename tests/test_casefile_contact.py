@@ -253,3 +253,258 @@ def test_friction_key_reaches_the_contact(shared_tmp):
     text = script(case)
     assert "friction=0.3," in text and "friction_epsilon=0.0001" in text
     compile(text, "rough.py", "exec")
+
+
+# -- mesh contact: two bodies (type = "pair"), self-contact ("self"), a rigid triangulated tool ("tool") -------------
+
+PAIR = """name = "two_blocks"
+[mesh]
+file = "blocks.msh"                  # lower below z = 0, upper above z = 5e-4 (non-matching facets)
+[[material]]
+law = "neo_hookean"
+E = 1.0
+nu = 0.3
+[[bc]]
+type = "displacement"
+boundary = "x0"
+value = [0.0]
+components = ["x"]
+[[bc]]
+type = "displacement"
+boundary = "y0"
+value = [0.0]
+components = ["y"]
+[[bc]]
+type = "displacement"
+boundary = "lower_bottom"
+value = [0.0]
+components = ["z"]
+[[bc]]
+type = "displacement"
+boundary = "upper_top"
+value = [-0.2]
+components = ["z"]
+[[contact]]
+type = "pair"
+boundaries = ["lower_top", "upper_bottom"]
+dhat = 1e-3
+[stepping]
+increment = 0.25
+max_increment = 0.25
+[solver]
+rtol = 1e-10
+atol = 1e-12
+[output]
+reactions = ["upper_top"]
+fields = []
+checkpoint = false
+progress = false
+"""
+
+TOOL = """name = "block_on_tool"
+[mesh]
+file = "{mesh}"
+[[material]]
+law = "neo_hookean"
+E = 1.0
+nu = 0.3
+[[bc]]
+type = "displacement"
+boundary = "x0"
+value = [0.0]
+components = ["x"]
+[[bc]]
+type = "displacement"
+boundary = "y0"
+value = [0.0]
+components = ["y"]
+[[bc]]
+type = "displacement"
+boundary = "top"
+value = [-0.2]
+components = ["z"]
+[[contact]]
+type = "tool"
+boundaries = ["bottom"]
+file = "plate.stl"                   # relative to this file
+dhat = 1e-3
+[stepping]
+increment = 0.25
+max_increment = 0.25
+[solver]
+rtol = 1e-10
+atol = 1e-12
+[output]
+reactions = ["top"]
+fields = []
+checkpoint = false
+progress = false
+"""
+
+
+def _write_pair(folder: Path, text: str = PAIR) -> Path:
+    """The two stacked blocks (hf.mesh.write_stacked_blocks_mesh) and the pair case beside them (rank 0, then all)."""
+    from hyperfem.mesh import write_stacked_blocks_mesh
+
+    path = folder / "two_blocks.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        if not (folder / "blocks.msh").exists():
+            write_stacked_blocks_mesh(folder / "blocks.msh", 0.5, 0.34, 5e-4)
+        path.write_text(text)
+    MPI.COMM_WORLD.Barrier()
+    return path
+
+
+def _write_tool(folder: Path, text: str = TOOL) -> Path:
+    """A two-triangle plate at z = -d-hat/2 (binary STL, meshio) and the block pressed onto it (rank 0, then all)."""
+    import meshio
+
+    path = folder / "block_on_tool.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        plate = [[-1.0, -1.0, -5e-4], [3.0, -1.0, -5e-4], [3.0, 3.0, -5e-4], [-1.0, 3.0, -5e-4]]
+        meshio.write_points_cells(folder / "plate.stl", plate, [("triangle", np.array([[0, 1, 2], [0, 2, 3]]))],
+                                  binary=True)
+        path.write_text(text.format(mesh=ROOT / "meshes" / "block_h0.34.msh"))
+    MPI.COMM_WORLD.Barrier()
+    return path
+
+
+def test_pair_contact_case_transmits_the_force_between_two_blocks(shared_tmp):
+    """``type = "pair"``: SurfaceContact of lower_top and upper_bottom; the force on lower_top = the top reaction
+    (1e-8) at every step, about -0.10866 N at the end (as tests/test_contact_surfaces.py through the API)."""
+    from hyperfem.contact import MeshBarrier, SurfaceContact
+
+    case = load_case(_write_pair(shared_tmp), output=shared_tmp / "pair")
+    (contact,) = case.contacts
+    assert (contact.type, contact.boundaries, contact.dhat, contact.boundary) == (
+        "pair", ("lower_top", "upper_bottom"), 1e-3, None)
+    text = script(case)
+    assert "contact = SurfaceContact(['lower_top', 'upper_bottom'], dhat=0.001).bind(problem)" in text
+    assert "external_energies=[contact]" in text and "Recorder(contact),  # contact[0]" in text
+    compile(text, "two_blocks.py", "exec")
+    built = build(case)
+    barrier = built.variables["contact"]
+    assert isinstance(barrier, MeshBarrier) and isinstance(barrier.contact, SurfaceContact)
+    summary = built.simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and summary["steps"] == 4
+    for row in rows[1:]:
+        assert row["contact_force"][2] == pytest.approx(row["reaction_upper_top_Fz"], rel=1e-8)
+    assert 0.0 < rows[-1]["contact_min_distance"] < 1e-3
+    assert rows[-1]["contact_force"][2] == pytest.approx(-0.10866, rel=1e-3)
+
+
+def test_tool_contact_case_presses_the_block_on_an_stl_plate(shared_tmp):
+    """``type = "tool"``: ToolContact of a binary STL plate (file relative to the case file); the tool's force on
+    the block = -(reaction at the top) to 1e-8 at every step; the script reads the file beside the case."""
+    from hyperfem.contact import MeshBarrier, ToolContact
+
+    case = load_case(_write_tool(shared_tmp), output=shared_tmp / "tool")
+    (contact,) = case.contacts
+    assert contact.file == (shared_tmp / "plate.stl").resolve() and contact.boundaries == ("bottom",)
+    text = script(case)
+    assert "contact = ToolContact(['bottom'], file=case_dir / 'plate.stl', dhat=0.001, name='contact')" \
+           ".bind(problem)" in text
+    compile(text, "block_on_tool.py", "exec")
+    built = build(case)
+    barrier = built.variables["contact"]
+    assert isinstance(barrier, MeshBarrier) and isinstance(barrier.contact, ToolContact)
+    summary = built.simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and rows[-1]["contact_force"][2] > 0.1
+    for row in rows[1:]:
+        assert row["contact_min_distance"] > 0.0
+        assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8)
+
+
+def test_surface_contact_keys_reach_the_script(shared_tmp):
+    """self, pair and tool keys (safety, name, motion, profile, offset, scale) become the API's keywords."""
+    self_contact = '[[contact]]\ntype = "self"\nboundaries = ["upper_top"]\nsafety = 0.5\nname = "folds"\n'
+    tool = ('[[contact]]\ntype = "tool"\nboundaries = ["upper_top"]\nfile = "plate.stl"\nmotion = [0.0, 0.0, 0.1]\n'
+            'profile = "steady"\noffset = [0.0, 0.0, 2.0]\nscale = 0.5\nstiffness = 10.0\n')
+    path = _write_pair(shared_tmp, PAIR.replace("[stepping]", self_contact + tool + "[stepping]"))
+    _write_tool(shared_tmp)
+    case = load_case(path)
+    assert [c.type for c in case.contacts] == ["pair", "self", "tool"]
+    text = script(case)
+    flat = " ".join(text.split()).replace("( ", "(").replace(", )", ")")  # the call on one line
+    assert "contact_0 = SurfaceContact(['lower_top', 'upper_bottom'], dhat=0.001, name='contact_0')" in flat
+    assert "contact_1 = SurfaceContact(['upper_top'], safety=0.5, name='folds').bind(problem)" in flat
+    assert ("contact_2 = ToolContact(['upper_top'], file=case_dir / 'plate.stl', motion=(0.0, 0.0, 0.1), "
+            "profile=Steady(1.0), offset=(0.0, 0.0, 2.0), scale=0.5, stiffness=10.0, name='contact_2')") in flat
+    assert "external_energies=[contact_0, contact_1, contact_2]" in text
+    assert "from hyperfem.contact import SurfaceContact, ToolContact" in text
+    compile(text, "surfaces.py", "exec")
+    check_groups(case, build_domain(case, MPI.COMM_WORLD))
+
+
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        ('boundaries = ["lower_top", "upper_bottom", "sides"]',
+         "contact[0].boundaries: a pair names exactly two facet groups, got 3"),
+        ('boundaries = ["lower_top", "lower_top"]', "contact[0].boundaries: 'lower_top' is named twice"),
+        ('boundary = "lower_top"', "contact[0].boundary: unknown key (did you mean 'boundaries'?); keys of a contact "
+                                   "of type 'pair': type, boundaries, dhat, stiffness, safety, name"),
+        ('friction = 0.3', "contact[0].friction: unknown key; keys of a contact of type 'pair'"),
+        ('safety = 1.0', "contact[0].safety: must be < 1, got 1.0"),
+        ('name = "a b"', "contact[0].name: use letters, digits and _.+- only"),
+    ],
+)
+def test_bad_pair_entries_are_one_line(shared_tmp, change, expected):
+    text = PAIR.replace('boundaries = ["lower_top", "upper_bottom"]\n', change + "\n", 1)
+    if change.startswith(("friction", "safety", "name")):
+        text = PAIR.replace("dhat = 1e-3\n", f"dhat = 1e-3\n{change}\n", 1)
+    with pytest.raises(CaseFileError) as info:
+        load_case(_write_pair(shared_tmp, text))
+    message = str(info.value)
+    assert expected in message and "\n" not in message
+
+
+@pytest.mark.parametrize(
+    "old, new, expected",
+    [
+        ('file = "plate.stl"', 'file = "missing.stl"', "contact[0].file: tool surface file not found: "),
+        ('dhat = 1e-3', 'dhat = 1e-3\nfriction = 0.2',
+         "contact[0].friction: unknown key; keys of a contact of type 'tool': type, boundaries, file, motion"),
+        ('dhat = 1e-3', 'dhat = 1e-3\nmotion = [0.0, 1.0]', "contact[0].motion: expected 3 numbers, got 2"),
+        ('dhat = 1e-3', 'dhat = 1e-3\nscale = 0.0', "contact[0].scale: must be > 0"),
+        ('boundaries = ["bottom"]', 'boundaries = []', "contact[0].boundaries: name at least one facet group"),
+    ],
+)
+def test_bad_tool_entries_are_one_line(shared_tmp, old, new, expected):
+    with pytest.raises(CaseFileError) as info:
+        load_case(_write_tool(shared_tmp, TOOL.replace(old, new, 1)))
+    message = str(info.value)
+    assert expected in message and "\n" not in message
+
+
+def test_unknown_surface_contact_group_lists_the_groups(shared_tmp):
+    case = load_case(_write_pair(shared_tmp, PAIR.replace('"upper_bottom"]', '"upper_botom"]')))
+    with pytest.raises(CaseFileError) as info:
+        check_groups(case, build_domain(case, MPI.COMM_WORLD))
+    message = str(info.value)
+    assert "contact[0].boundaries[1]: no boundary 'upper_botom'" in message
+    assert "(did you mean 'upper_bottom'?)" in message and "\n" not in message
+
+
+def test_duplicate_contact_output_names_are_refused(shared_tmp):
+    second = '[[contact]]\ntype = "self"\nboundaries = ["upper_top"]\nname = "contact_0"\n'
+    with pytest.raises(CaseFileError) as info:
+        load_case(_write_pair(shared_tmp, PAIR.replace("[stepping]", second + "[stepping]")))
+    assert "contact[1].name: 'contact_0' is the output name of contact[0] too" in str(info.value)
+
+
+def test_cli_refuses_a_pair_with_three_boundaries_in_one_line(shared_tmp, capsys):
+    """``hyperfem check`` prints the one-line message and exits non-zero."""
+    from hyperfem.app.main import main
+
+    text = PAIR.replace('["lower_top", "upper_bottom"]', '["lower_top", "upper_bottom", "sides"]')
+    path = _write_pair(shared_tmp, text)
+    with pytest.raises(SystemExit) as info:
+        main(["check", str(path)])
+    assert info.value.code != 0
+    if MPI.COMM_WORLD.rank == 0:
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("hyperfem: error: ")
+        assert "contact[0].boundaries: a pair names exactly two facet groups, got 3" in lines[0]

@@ -75,7 +75,10 @@ def _groups(case: Case) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
     """``(key, name)`` of every facet group and every cell group the case names."""
     facets = [(f"{bc.key}.boundary", bc.boundary) for bc in case.bcs]
     facets += [(f"{ld.key}.boundary", ld.boundary) for ld in case.loads if ld.boundary is not None]
-    facets += [(f"{c.key}.boundary", c.boundary) for c in case.contacts]
+    for c in case.contacts:
+        if c.boundary is not None:
+            facets.append((f"{c.key}.boundary", c.boundary))
+        facets += [(f"{c.key}.boundaries[{i}]", name) for i, name in enumerate(c.boundaries or ())]
     if case.fibres is not None and case.fibres.type == "laplace":
         facets += [("fibres.source", case.fibres.options["source"]), ("fibres.target", case.fibres.options["target"])]
     cells = [(f"{m.key}.region", m.region) for m in case.materials if m.region is not None]
@@ -126,6 +129,8 @@ def check_dimensions(case: Case, domain: Domain) -> None:
         elif isinstance(load.value, tuple) and len(load.value) != gdim:
             fail(f"{load.key}.value", f"{len(load.value)} components")
     for contact in case.contacts:
+        if contact.boundaries is not None and gdim != 3:
+            fail(contact.key, f"a {contact.type} contact needs a 3D mesh of tetrahedra")
         name, where = ("center", contact.center) if contact.type == "sphere" else ("point", contact.point)
         if where is not None and len(where) != gdim:
             fail(f"{contact.key}.{name}", f"{len(where)} components")

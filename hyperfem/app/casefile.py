@@ -155,7 +155,7 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
             raise CaseFileError("fibres: no material uses fibres (only law = \"muscle\" does)")
         bcs = sections.check_bcs(top.get("bc", []))
         loads = sections.check_loads(top.get("load", []))
-        contacts = sections.check_contacts(top.get("contact", []))
+        contacts = sections.check_contacts(top.get("contact", []), source)
         stepping = sections.check_stepping(top.get("stepping", {}))
         if stepping.dynamic and stepping.scheme != "quasi_static":
             for m in materials:

@@ -25,7 +25,7 @@ from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
 from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
-from hyperfem.contact import PlaneContact, SphereContact
+from hyperfem.contact import PlaneContact, SphereContact, SurfaceContact, ToolContact
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -301,6 +301,7 @@ def _uses_case_dir(case: Case) -> bool:
     files = [case.mesh.file]
     if case.fibres is not None and case.fibres.type not in ("laplace", "constant"):
         files.append(_fibre_file(case))
+    files += [c.file for c in case.contacts if c.file is not None]
     return any(f is not None and _case_relative(case, f) is not None for f in files)
 
 
@@ -435,9 +436,38 @@ def _contact_names(case: Case) -> list[str]:
     return [f"contact_{i}" if several else "contact" for i in range(len(case.contacts))]
 
 
-def _contact(contact: ContactSpec, name: str, several: bool) -> Call:
+def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
+    """``[[contact]]`` of ``type = "self"`` or ``"pair"``: :class:`~hyperfem.contact.SurfaceContact`;
+    ``"tool"``: :class:`~hyperfem.contact.ToolContact` (its file relative to the case file), bound to the problem."""
+    assert contact.boundaries is not None
+    tool = contact.type == "tool"
+    kwargs: dict[str, object] = {}
+    if tool:
+        assert contact.file is not None
+        kwargs["file"] = _path(case, contact.file)
+        if contact.motion is not None:
+            kwargs["motion"] = contact.motion
+        profile = _profile(contact.profile)
+        if profile is not None:
+            kwargs["profile"] = profile
+        for key in ("offset", "scale"):
+            if getattr(contact, key) is not None:
+                kwargs[key] = getattr(contact, key)
+    for key in ("dhat", "stiffness", "safety"):
+        if getattr(contact, key) is not None:
+            kwargs[key] = getattr(contact, key)
+    kind = ToolContact if tool else SurfaceContact
+    if name != kind.name:  # the output columns: contact_force, contact_0_force, ... (the class's default: tool)
+        kwargs["name"] = name
+    return Call.of(Attr(Call.of(kind, list(contact.boundaries), **kwargs), "bind"), Ref("problem"))
+
+
+def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call:
     """``[[contact]]``: :class:`~hyperfem.contact.PlaneContact` (``type = "plane"``) or
-    :class:`~hyperfem.contact.SphereContact` (``"sphere"``) bound to the problem."""
+    :class:`~hyperfem.contact.SphereContact` (``"sphere"``) bound to the problem; the surface
+    contacts (``"self"``, ``"pair"``, ``"tool"``): :func:`_surface_contact`."""
+    if contact.boundaries is not None:
+        return _surface_contact(case, contact, contact.name or name)
     sphere = contact.type == "sphere"
     kwargs: dict[str, object] = (
         {"center": contact.center, "radius": contact.radius}
@@ -463,7 +493,8 @@ def _contact(contact: ContactSpec, name: str, several: bool) -> Call:
 def _contacts(case: Case) -> list[Statement]:
     """The contacts of the body, each bound to the problem (an external energy of the solver)."""
     names = _contact_names(case)
-    return [Statement(c.key, n, _contact(c, n, len(names) > 1)) for c, n in zip(case.contacts, names, strict=True)]
+    several = len(names) > 1
+    return [Statement(c.key, n, _contact(case, c, n, several)) for c, n in zip(case.contacts, names, strict=True)]
 
 
 def _solver(case: Case) -> list[Statement]:

@@ -237,6 +237,9 @@ RULES: dict[str, tuple[dict, ...]] = {
          "then": _none_of("beta", "gamma")},
         {"if": {"not": _is("scheme", "generalized_alpha")}, "then": _none_of("rho_inf")},
     ),
+    "contact[2]": ({"properties": {"boundaries": {"minItems": 1, "uniqueItems": True}}},),
+    "contact[3]": ({"properties": {"boundaries": {"minItems": 2, "maxItems": 2, "uniqueItems": True}}},),
+    "contact[4]": ({"properties": {"boundaries": {"minItems": 1, "uniqueItems": True}}},),
     "output": (
         {"not": _required("times", "every")},
         {"if": _is("checkpoint", False), "then": _none_of("checkpoint_every", "checkpoint_keep")},
@@ -244,7 +247,8 @@ RULES: dict[str, tuple[dict, ...]] = {
 }
 """Rules between keys that :mod:`hyperfem.app.sections` checks in code, as JSON Schema, by table path
 (``material[2]``: of its third variant): mesh file or generator; the elastic constants as one pair;
-muscle parameters without a preset; scheme parameters; output times or every; checkpoints off."""
+muscle parameters without a preset; scheme parameters; the boundaries of a self, pair (two) or tool contact;
+output times or every; checkpoints off."""
 
 
 # -- the key tables --------------------------------------------------------------------------------

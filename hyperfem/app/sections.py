@@ -25,6 +25,7 @@ from hyperfem.app.spec import (
     FIBRE_TYPES,
     FORMULATIONS,
     LAME_LAWS,
+    MESH_CONTACT_TYPES,
     LAWS,
     LOAD_TYPES,
     MIXED_LAWS,
@@ -90,7 +91,8 @@ TOP = {
     "fibres": Key("table", help="fibre directions, needed by law \"muscle\" (hf.fibres); its keys depend on type"),
     "bc": Key("tables", help="Dirichlet conditions, one [[bc]] each; its keys depend on type"),
     "load": Key("tables", help="loads, one [[load]] each; its keys depend on type"),
-    "contact": Key("tables", help="contact with obstacles, one [[contact]] each (intersection-free, optional friction: "
+    "contact": Key("tables", help="contact with obstacles, one [[contact]] each: a rigid plane, sphere or triangulated "
+                   "tool, self-contact, two bodies of one mesh (intersection-free, friction on plane and sphere: "
                    "hyperfem.contact; needs pip install 'hyperfem[contact]'); its keys depend on type"),
     "stepping": Key("table", help="a load ramp (type = \"quasi-static\", the default) or a time integration "
                     "(type = \"dynamic\"); its keys depend on type"),
@@ -233,10 +235,12 @@ BCS = {
 _CONTACT_COMMON = {
     "type": Key("string", required=True, choices=CONTACT_TYPES, example="plane",
                 help="plane: a rigid half-space (hyperfem.contact.PlaneContact); sphere: a rigid ball, an indenter "
-                "or spherical tool (hyperfem.contact.SphereContact)"),
-    "boundary": Key("string", required=True, example="bottom",
-                    help="facet group of the mesh whose nodes may touch the obstacle"),
+                "or spherical tool (hyperfem.contact.SphereContact); self: self-contact of surfaces and pair: two "
+                "bodies of one mesh (hyperfem.contact.SurfaceContact); tool: a rigid triangulated tool read from a "
+                "file (hyperfem.contact.ToolContact)"),
 }
+_NODE_BOUNDARY = Key("string", required=True, example="bottom",
+                     help="facet group of the mesh whose nodes may touch the obstacle")
 
 
 def _barrier_keys(obstacle: str) -> dict[str, Key]:
@@ -259,8 +263,27 @@ def _barrier_keys(obstacle: str) -> dict[str, Key]:
     }
 
 
+def _surface_keys(default_name: str) -> dict[str, Key]:
+    """The keys of the contacts of triangulated surfaces (self, pair, tool): barrier, filter, output name."""
+    return {
+        "dhat": Key("number", above=0.0, example=0.001,
+                    help="barrier width in m: the distance below which contact forces act; default 1 % of the "
+                    "smallest mean facet size of the boundaries"),
+        "stiffness": Key("number", above=0.0, example=1.0e6,
+                         help="ipctk's barrier stiffness kappa, on squared distances; default from the mean "
+                         "diagonal of the elastic tangent at the surface nodes"),
+        "safety": Key("number", above=0.0, below=1.0, default=0.9,
+                      help="the collision filter's safety factor s in (0, 1): a Newton step goes at most s of the "
+                      "way to the first touch"),
+        "name": Key("string", pattern=NAME.pattern, example=default_name,
+                    help="prefix of the output columns (NAME_force, NAME_active, NAME_min_distance); default "
+                    "contact, or contact_0, contact_1, ... when there are several contacts"),
+    }
+
+
 CONTACTS = {
     "plane": {
+        "boundary": _NODE_BOUNDARY,
         "point": Key("numbers", required=True, example=(0.0, 0.0, 0.0),
                      help="a point of the plane in m (where it is at profile 0)"),
         "normal": Key("numbers", required=True, example=(0.0, 0.0, 1.0),
@@ -268,10 +291,39 @@ CONTACTS = {
         **_barrier_keys("plane"),
     },
     "sphere": {
+        "boundary": _NODE_BOUNDARY,
         "center": Key("numbers", required=True, example=(0.5, 0.5, 1.3),
                       help="the sphere's centre in m (where it is at profile 0); the body stays outside it"),
         "radius": Key("number", required=True, above=0.0, example=0.3, help="the sphere's radius in m"),
         **_barrier_keys("sphere"),
+    },
+    "self": {
+        "boundaries": Key("strings", required=True, example=("surface",),
+                          help="facet groups whose triangles may touch each other and themselves (self-contact), "
+                          "one or more; frictionless"),
+        **_surface_keys("contact"),
+    },
+    "pair": {
+        "boundaries": Key("strings", required=True, example=("lower_top", "upper_bottom"),
+                          help="the two facet groups of two bodies of one mesh that may touch (each may touch "
+                          "itself too); frictionless; the force output is the force on the first"),
+        **_surface_keys("contact"),
+    },
+    "tool": {
+        "boundaries": Key("strings", required=True, example=("top",),
+                          help="facet groups of the body that the rigid tool may touch, one or more; frictionless; "
+                          "the force output is the tool's force on the body"),
+        "file": Key("string", required=True, example="spatula.stl",
+                    help="the tool's triangulated surface (STL, OBJ, PLY, VTK/VTU or gmsh, read by meshio), "
+                    "relative to the case file"),
+        "motion": Key("vector", length=3, example=(0.0, 0.0, -0.3),
+                      help="translation of the tool in m at f = 1 (a moving tool); default none"),
+        "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
+        "offset": Key("vector", length=3, example=(0.0, 0.0, 1.0),
+                      help="translation applied once to the file's points in m (placing the tool); default none"),
+        "scale": Key("number", above=0.0, default=1.0,
+                     help="factor applied once to the file's points (before offset; 1e-3 for a file in mm)"),
+        **_surface_keys("indenter"),
     },
 }
 
@@ -927,7 +979,40 @@ def _render(raw: object, fibres: FibreSpec | None, materials: Sequence[MaterialS
     return RenderSpec(tuple((k, values[k]) for k in RENDER if k in values))
 
 
-def _contact(index: int, table: Mapping) -> ContactSpec:
+def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> ContactSpec:
+    """A ``self``, ``pair`` or ``tool`` contact: its boundaries (one or more; two for a pair, each once), the file."""
+    names = values["boundaries"]
+    if kind == "pair" and len(names) != 2:
+        raise CaseFileError(f"{where}.boundaries: a pair names exactly two facet groups, got {len(names)}")
+    if not names:
+        raise CaseFileError(f"{where}.boundaries: name at least one facet group")
+    twice = [name for i, name in enumerate(names) if name in names[:i]]
+    if twice:
+        raise CaseFileError(f"{where}.boundaries: {twice[0]!r} is named twice")
+    path = None
+    if kind == "tool":
+        path = Path(values["file"]).expanduser()
+        path = path if path.is_absolute() else (source.parent / path).resolve()
+        if not path.is_file():
+            raise CaseFileError(f"{where}.file: tool surface file not found: {path}")
+    profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    return ContactSpec(
+        key=where,
+        type=kind,
+        boundaries=tuple(names),
+        file=path,
+        dhat=values.get("dhat"),
+        stiffness=values.get("stiffness"),
+        motion=values.get("motion"),
+        profile=profile,
+        offset=values.get("offset"),
+        scale=values.get("scale"),
+        safety=values.get("safety"),
+        name=values.get("name"),
+    )
+
+
+def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
     where = join("contact", index)
     if not isinstance(table, Mapping):
         raise CaseFileError(f"{where}: expected a table, got {describe(table)}")
@@ -935,6 +1020,11 @@ def _contact(index: int, table: Mapping) -> ContactSpec:
         raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(CONTACT_TYPES)})")
     kind = check_value(table["type"], _CONTACT_COMMON["type"], join(where, "type"))
     values = check_table(table, {**_CONTACT_COMMON, **CONTACTS[kind]}, where, what=f"a contact of type {kind!r}")
+    if "name" in values and not NAME.fullmatch(values["name"]):
+        raise CaseFileError(f"{where}.name: use letters, digits and _.+- only (it names output columns), got "
+                            f"{values['name']!r}")
+    if kind in MESH_CONTACT_TYPES:
+        return _surface_contact(where, kind, values, source)
     anchor = "point" if kind == "plane" else "center"
     if kind == "plane" and not any(values["normal"]):
         raise CaseFileError(f"{where}.normal: must not be zero, got {list(values['normal'])}")
@@ -961,9 +1051,18 @@ def _contact(index: int, table: Mapping) -> ContactSpec:
     )
 
 
-def check_contacts(entries: Sequence[Mapping]) -> tuple[ContactSpec, ...]:
-    """The ``[[contact]]`` entries."""
-    return tuple(_contact(i, t) for i, t in enumerate(entries))
+def check_contacts(entries: Sequence[Mapping], source: Path) -> tuple[ContactSpec, ...]:
+    """The ``[[contact]]`` entries (a tool's ``file`` relative to the case file ``source``); output names unique."""
+    contacts = tuple(_contact(i, t, source) for i, t in enumerate(entries))
+    seen: dict[str, str] = {}
+    for i, contact in enumerate(contacts):
+        name = contact.name or (f"contact_{i}" if len(contacts) > 1 else "contact")
+        if name in seen:
+            raise CaseFileError(
+                f"{contact.key}.name: {name!r} is the output name of {seen[name]} too (it prefixes the output columns)"
+            )
+        seen[name] = contact.key
+    return contacts
 
 
 def check_loads(entries: Sequence[Mapping]) -> tuple[LoadSpec, ...]:

@@ -55,7 +55,9 @@ SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
 FIBRE_TYPES = ("laplace", "constant", "file")
 REPRESENTATIONS = ("DG0", "P1", "quadrature")
 BC_TYPES = ("clamp", "displacement", "rotation")
-CONTACT_TYPES = ("plane", "sphere")
+CONTACT_TYPES = ("plane", "sphere", "self", "pair", "tool")
+MESH_CONTACT_TYPES = ("self", "pair", "tool")
+"""Contacts of boundary surfaces (triangles and edges) rather than of boundary nodes: ``boundaries``, 3D only."""
 LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
 PROFILE_TYPES = ("linear", "steady", "ramp", "table")
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -197,13 +199,21 @@ class LoadSpec:
 
 @dataclass(frozen=True)
 class ContactSpec:
-    """One ``[[contact]]``: a boundary that may touch an obstacle (intersection-free, optional friction).
+    """One ``[[contact]]``: a boundary that may touch an obstacle, itself or another body (intersection-free).
 
     Attributes:
         key: Key path (``"contact[0]"``).
         type: One of :data:`CONTACT_TYPES` (``"plane"``: :class:`~hyperfem.contact.PlaneContact`,
-            ``"sphere"``: :class:`~hyperfem.contact.SphereContact`).
-        boundary: Facet group whose nodes may touch.
+            ``"sphere"``: :class:`~hyperfem.contact.SphereContact`, ``"self"`` and ``"pair"``:
+            :class:`~hyperfem.contact.SurfaceContact`, ``"tool"``: :class:`~hyperfem.contact.ToolContact`).
+        boundary: Facet group whose nodes may touch (plane, sphere); ``None`` for the others.
+        boundaries: Facet groups whose triangles may touch (self, pair, tool); ``None`` for plane and sphere.
+        file: The tool's surface file (absolute); ``None`` but for a tool.
+        offset: Translation applied once to the tool's points, or ``None``.
+        scale: Factor applied once to the tool's points, or ``None`` (1).
+        safety: The collision filter's safety factor, or ``None`` (the library default).
+        name: Prefix of the output columns as given, or ``None`` (``contact``, or ``contact_0``, ... when
+            there are several contacts).
         point: A point of the plane (at profile 0); ``None`` for a sphere.
         normal: The plane's normal, pointing to the body's side; ``None`` for a sphere.
         dhat: Barrier width, or ``None`` (the library default).
@@ -218,7 +228,7 @@ class ContactSpec:
 
     key: str
     type: str
-    boundary: str
+    boundary: str | None = None
     point: tuple[float, ...] | None = None
     normal: tuple[float, ...] | None = None
     dhat: float | None = None
@@ -229,6 +239,12 @@ class ContactSpec:
     radius: float | None = None
     friction: float = 0.0
     friction_epsilon: float | None = None
+    boundaries: tuple[str, ...] | None = None
+    file: Path | None = None
+    offset: tuple[float, ...] | None = None
+    scale: float | None = None
+    safety: float | None = None
+    name: str | None = None
 
 
 @dataclass(frozen=True)
