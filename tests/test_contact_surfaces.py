@@ -26,6 +26,7 @@ from hyperfem.contact.shapes import icosphere  # noqa: E402
 from hyperfem.errors import MeshError, ParameterError, UnknownGroupError  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
 from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
+from test_contact import _cube  # noqa: E402  (the cube with bottom, top, x0, y0)
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-12}
@@ -108,17 +109,6 @@ def test_p2_surfaces_balance_the_reaction():
 
 
 # -- a rigid triangulated tool -------------------------------------------------------------------------------------
-
-
-def _cube(comm, n: int):
-    mesh = dmesh.create_unit_cube(comm, n, n, n)
-    groups = {
-        "bottom": lambda x: np.isclose(x[2], 0.0),
-        "top": lambda x: np.isclose(x[2], 1.0),
-        "x0": lambda x: np.isclose(x[0], 0.0),
-        "y0": lambda x: np.isclose(x[1], 0.0),
-    }
-    return hf.Domain.from_locators(mesh, groups, source=f"cube({n})")
 
 
 def _pressed_cube(comm=MPI.COMM_WORLD, delta=0.2, top=None):

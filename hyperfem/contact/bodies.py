@@ -39,12 +39,10 @@ from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, mean_tangent_diagonal
 from hyperfem.contact.mesh_barrier import MeshBarrier
 from hyperfem.contact.nodes import facet_size
-from hyperfem.contact.settings import check_contact_settings
+from hyperfem.contact.settings import check_boundaries, check_contact_settings
 from hyperfem.contact.surface import contact_surface
-from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
-from hyperfem.validation import check_name
 
 __all__ = ["SurfaceContact", "surface_defaults"]
 
@@ -90,14 +88,7 @@ class SurfaceContact:
     name: str = "contact"
 
     def __post_init__(self) -> None:
-        names = [self.boundaries] if isinstance(self.boundaries, str) else list(self.boundaries)
-        where = f"SurfaceContact on {names!r}"
-        if not names:
-            raise ParameterError(f"{where}: needs at least one boundary group")
-        for name in names:
-            check_name(name, "boundaries", "SurfaceContact")
-        if len(set(names)) != len(names):
-            raise ParameterError(f"{where}: a boundary is named twice")
+        names, where = check_boundaries(self.boundaries, "SurfaceContact")
         object.__setattr__(self, "boundaries", tuple(names))
         check_contact_settings(
             where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=0.0,

@@ -7,7 +7,7 @@ checked by :mod:`~hyperfem.contact.obstacles`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -15,7 +15,7 @@ from hyperfem.contact.barrier import require_ipctk
 from hyperfem.errors import ParameterError
 from hyperfem.validation import check_callable, check_name, check_positive
 
-__all__ = ["check_contact_settings"]
+__all__ = ["check_boundaries", "check_contact_settings"]
 
 
 def check_contact_settings(
@@ -45,3 +45,20 @@ def check_contact_settings(
     check_callable(profile, where, "profile")
     check_name(name, "name", where)
     require_ipctk(where)
+
+
+def check_boundaries(boundaries: str | Sequence[str], owner: str) -> tuple[tuple[str, ...], str]:
+    """The boundary names of a mesh contact as a tuple, and ``where`` (``ToolContact on ['top']``) for messages.
+
+    Raises:
+        ParameterError: No name, a name that is not a valid group name, or a name given twice.
+    """
+    names = [boundaries] if isinstance(boundaries, str) else list(boundaries)
+    where = f"{owner} on {names!r}"
+    if not names:
+        raise ParameterError(f"{where}: needs at least one boundary group")
+    for name in names:
+        check_name(name, "boundaries", owner)
+    if len(set(names)) != len(names):
+        raise ParameterError(f"{where}: a boundary is named twice")
+    return tuple(names), where

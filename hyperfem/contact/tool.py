@@ -30,12 +30,12 @@ import numpy as np
 from hyperfem.contact.bodies import surface_defaults
 from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.mesh_barrier import MeshBarrier, RigidSurface
-from hyperfem.contact.settings import check_contact_settings
+from hyperfem.contact.settings import check_boundaries, check_contact_settings
 from hyperfem.contact.surface import contact_surface
 from hyperfem.errors import MeshError, ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
-from hyperfem.validation import check_finite_vector, check_name
+from hyperfem.validation import check_finite_vector
 
 __all__ = ["ToolContact", "read_tool_surface"]
 
@@ -106,12 +106,7 @@ class ToolContact:
     triangles: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        names = [self.boundaries] if isinstance(self.boundaries, str) else list(self.boundaries)
-        where = f"ToolContact on {names!r}"
-        if not names:
-            raise ParameterError(f"{where}: needs at least one boundary group")
-        for name in names:
-            check_name(name, "boundaries", "ToolContact")
+        names, where = check_boundaries(self.boundaries, "ToolContact")
         object.__setattr__(self, "boundaries", tuple(names))
         if callable(self.motion):
             start = np.asarray(self.motion(0.0), dtype=float)
