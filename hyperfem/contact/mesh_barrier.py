@@ -36,9 +36,13 @@ than :math:`\hat d` since the last tangent) and exact once they settle, which
 restores the quadratic rate at the end of a solve. An exact tangent can be
 indefinite; where its Newton direction is not a descent direction of
 :math:`\Pi`, the solver recomputes the direction with the projected tangent
-and keeps projecting for the rest of the solve
 (:meth:`MeshBarrier.project_tangent`, called from the line search's
-pre-check through :meth:`~hyperfem.solver.external.ExternalTerms.descent_guard`).
+pre-check, ``NewtonSolver._descent_guard``), and the tangent stays projected
+until the iterates settle again. Projecting for the rest of the solve
+instead stalled the sphere indenting a finer slab (10 x 10 x 5 boxes:
+``DIVERGED_MAX_IT``, the residual growing while :math:`\Pi` fell); with the
+rule above it reaches half the slab's thickness at 10 x 10 x 5 and
+14 x 14 x 7 boxes, and at :math:`\hat d` from 1e-3 to 5e-3.
 
 **Step filter** (:class:`MeshCollisionFilter`): ``ipctk``'s continuous
 collision detection of the linear trajectory from the iterate to the full
@@ -238,7 +242,7 @@ class MeshBarrier:
         self._project = False
 
     def project_tangent(self) -> None:
-        """Project the Hessian onto the PSD cone at every tangent until the next :meth:`update` (the next solve)."""
+        """Project the Hessian at the next tangent, and until the iterates settle again (module docstring)."""
         self._project = True
 
     def vertices(self, u: np.ndarray) -> np.ndarray:
@@ -306,6 +310,9 @@ class MeshBarrier:
         settled = self._tangent_at is not None and float(np.abs(V - self._tangent_at).max()) < self.dhat
         self._tangent_at = V.copy()
         self.exact_tangent = settled and not self._project
+        if self._project:  # this one tangent projected; exact again once the iterates settle anew
+            self._project = False
+            self._tangent_at = None
         method = self.ipctk.PSDProjectionMethod
         H = self.potential.hessian(collisions, self.mesh, _f(V), method.NONE if self.exact_tangent else method.CLAMP)
         H = H.tocoo()

@@ -315,7 +315,7 @@ class ExternalTerms:
         return any(bool(getattr(e, "exact_tangent", False)) for e in self.energies)
 
     def project_tangents(self) -> None:
-        """Let every energy with a choice project its Hessian until the next solve (``project_tangent()``)."""
+        """Let every energy with a choice project its Hessian at the next tangent (``project_tangent()``)."""
         for energy in self.energies:
             project = getattr(energy, "project_tangent", None)
             if project is not None:

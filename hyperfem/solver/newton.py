@@ -521,8 +521,8 @@ class NewtonSolver:
         r"""Replace a direction that does not descend (an exact, indefinite contact tangent) by the projected one.
 
         SNES tries :math:`x - \lambda y`: a descent direction has :math:`r\cdot y > 0`.
-        Otherwise the energies project their Hessians for the rest of the solve,
-        the tangent is assembled again at ``x`` and ``y`` solved anew
+        Otherwise the energies project their Hessians (until the iterates settle
+        again), the tangent is assembled again at ``x`` and ``y`` solved anew
         (:mod:`hyperfem.contact.mesh_barrier`).
         """
         r = self.snes.getFunction()[0]  # type: ignore[index, unused-ignore]  # petsc4py stubs: (Vec, callback)
