@@ -538,9 +538,27 @@ def _why(record: SolveRecord) -> str:
     return f"SNES {record.reason_name}{detail}, min J {record.min_J:.3g}"
 
 
-def _attempt(stage: Stage[Any], policy: StepPolicy, t: float, sign: float, h: float, state: object) -> _Attempt:
-    """One attempt of a step of length ``h`` (and its error estimate); committed if it passes."""
-    record = stage.advance(t, sign * h)
+def _landing(t: float, target: float) -> float:
+    """The increment ``dt`` with ``t + dt == target`` exactly in floating point (``target - t`` may miss by one ulp)."""
+    dt = target - t
+    for _ in range(4):
+        if t + dt == target:
+            break
+        dt = math.nextafter(dt, math.inf if t + dt < target else -math.inf)
+    return dt
+
+
+def _attempt(
+    stage: Stage[Any], policy: StepPolicy, t: float, sign: float, h: float, state: object, target: float | None = None
+) -> _Attempt:
+    """One attempt of a step of length ``h`` (and its error estimate); committed if it passes.
+
+    A step that ends on ``target`` (a must-hit time or the end) lands on it exactly.
+    """
+    dt = sign * h
+    if target is not None and abs(t + dt - target) <= 1e-12 * max(1.0, abs(target)):
+        dt = _landing(t, target)
+    record = stage.advance(t, dt)
     records = [record]
     ok = _acceptable(record, policy)
     if ok:
@@ -550,8 +568,9 @@ def _attempt(stage: Stage[Any], policy: StepPolicy, t: float, sign: float, h: fl
         coarse = stage.save()
         stage.restore(state)
         accepted = []
-        for _ in range(2):
-            record = stage.advance(stage.time, sign * (h / 2))
+        for half in range(2):
+            # Two halves: the second ends where the full step ended (exactly, on a target).
+            record = stage.advance(stage.time, sign * (h / 2) if half == 0 else _landing(stage.time, t + dt))
             records.append(record)
             ok = _acceptable(record, policy)
             if not ok:
@@ -640,7 +659,7 @@ def _step(
                 t,
                 history,
             )
-        attempt = _attempt(stage, policy, t, course.sign, h, state)
+        attempt = _attempt(stage, policy, t, course.sign, h, state, course.target(t))
         solves += len(attempt.records)
         if attempt.ok:
             break
