@@ -146,6 +146,7 @@ def main(argv=None):
             f"{np.round(result['force'][-1], 4).tolist()}; force + reaction {result['balance']:.1e} of the force; "
             f"smallest gap {result['min_distance']:.3g}; intersecting: {result['intersecting']}"
         )
+    comm.Barrier()  # the file exists on every rank's return
     return result
 
 
