@@ -18,6 +18,8 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   :mod:`~hyperfem.contact.bodies`) and :class:`ToolContact` (a rigid
   triangulated tool from an STL/OBJ/gmsh file or arrays, moving on a path;
   :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`).
+* Gluing: :class:`TieContact` (two groups of non-matching meshes held
+  together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).
 * :mod:`~hyperfem.contact.barrier` (the nodal barrier function),
   :mod:`~hyperfem.contact.defaults` (:math:`\hat d`, :math:`\kappa`),
   :mod:`~hyperfem.contact.nodes` (contact nodes), :mod:`~hyperfem.contact.settings`
@@ -46,6 +48,7 @@ from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.mesh_barrier import MeshBarrier, MeshCollisionFilter, RigidSurface
 from hyperfem.contact.surface import ContactSurface, contact_surface
 from hyperfem.contact.shapes import icosphere
+from hyperfem.contact.tie import TIE_FACTOR, TieBarrier, TieContact
 from hyperfem.contact.tool import ToolContact, read_tool_surface
 from hyperfem.contact.obstacles import Ball, HalfSpace
 from hyperfem.contact.plane import PlaneBarrier, PlaneContact
@@ -63,6 +66,9 @@ __all__ = [
     "MeshCollisionFilter",
     "RigidSurface",
     "SurfaceContact",
+    "TIE_FACTOR",
+    "TieBarrier",
+    "TieContact",
     "ToolContact",
     "read_tool_surface",
     "contact_surface",
