@@ -508,3 +508,30 @@ def test_cli_refuses_a_pair_with_three_boundaries_in_one_line(shared_tmp, capsys
         lines = capsys.readouterr().err.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("hyperfem: error: ")
         assert "contact[0].boundaries: a pair names exactly two facet groups, got 3" in lines[0]
+
+
+def test_tie_case_glues_two_blocks_in_tension(shared_tmp):
+    """``type = "tie"``: the two blocks glued (TieContact) and pulled apart by 0.2: the tie's force on upper_bottom
+    = minus the top reaction, the uniaxial closed form P_zz(1.1) = 0.0930774 (tests/test_contact_tie.py)."""
+    from hyperfem.contact import TieBarrier
+
+    text = PAIR.replace('type = "pair"\nboundaries = ["lower_top", "upper_bottom"]\ndhat = 1e-3',
+                        'type = "tie"\nboundaries = ["upper_bottom", "lower_top"]')
+    text = text.replace("value = [-0.2]", "value = [0.2]")
+    text = text.replace("rtol = 1e-10\natol = 1e-12", "rtol = 1e-10\natol = 1e-7")  # the penalty's round-off floor
+    folder = shared_tmp / "tie"
+    if MPI.COMM_WORLD.rank == 0:
+        folder.mkdir(exist_ok=True)
+    MPI.COMM_WORLD.Barrier()
+    case = load_case(_write_pair(folder, text), output=folder / "out")
+    (contact,) = case.contacts
+    assert (contact.type, contact.boundaries) == ("tie", ("upper_bottom", "lower_top"))
+    text = script(case)
+    assert "contact = TieContact('upper_bottom', 'lower_top', name='contact').bind(problem)" in text
+    compile(text, "tie.py", "exec")
+    built = build(case)
+    assert isinstance(built.variables["contact"], TieBarrier)
+    rows = built.simulation.run()["rows"]
+    assert rows[-1]["contact_force"][2] == pytest.approx(-rows[-1]["reaction_upper_top_Fz"], rel=1e-7)
+    assert rows[-1]["reaction_upper_top_Fz"] == pytest.approx(0.0930774, rel=1e-5)
+    assert rows[-1]["contact_max_gap"] < 1e-8

@@ -25,7 +25,7 @@ from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
 from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
-from hyperfem.contact import PlaneContact, SphereContact, SurfaceContact, ToolContact
+from hyperfem.contact import PlaneContact, SphereContact, SurfaceContact, TieContact, ToolContact
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -466,6 +466,11 @@ def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call
     """``[[contact]]``: :class:`~hyperfem.contact.PlaneContact` (``type = "plane"``) or
     :class:`~hyperfem.contact.SphereContact` (``"sphere"``) bound to the problem; the surface
     contacts (``"self"``, ``"pair"``, ``"tool"``): :func:`_surface_contact`."""
+    if contact.type == "tie":
+        assert contact.boundaries is not None
+        tie: dict[str, object] = {k: getattr(contact, k) for k in ("stiffness", "tolerance") if getattr(contact, k)}
+        tie["name"] = contact.name or name
+        return Call.of(Attr(Call.of(TieContact, *contact.boundaries, **tie), "bind"), Ref("problem"))
     if contact.boundaries is not None:
         return _surface_contact(case, contact, contact.name or name)
     sphere = contact.type == "sphere"

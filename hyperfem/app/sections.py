@@ -309,6 +309,21 @@ CONTACTS = {
                           "itself too); frictionless; the force output is the force on the first"),
         **_surface_keys("contact"),
     },
+    "tie": {
+        "boundaries": Key("strings", required=True, example=("upper_bottom", "lower_top"),
+                          help="the two facet groups glued together (non-matching meshes allowed; they must face "
+                          "each other): the nodes of each are tied to the triangles of the other (two-pass "
+                          "penalty); the force output is the force on the first"),
+        "stiffness": Key("number", above=0.0, example=1.0e8,
+                         help="the tie's penalty k; default 1e8 times the mean diagonal of the elastic tangent at "
+                         "the glued nodes (for direct solvers; lower it for iterative ones)"),
+        "tolerance": Key("number", above=0.0, example=0.001,
+                         help="the largest reference distance in m of a node of one group from the other group; "
+                         "default 1 % of their mean edge (farther: the groups do not face each other)"),
+        "name": Key("string", pattern=NAME.pattern, example="tie",
+                    help="prefix of the output columns (NAME_force, NAME_max_gap); default contact, or "
+                    "contact_0, contact_1, ... when there are several contacts"),
+    },
     "tool": {
         "boundaries": Key("strings", required=True, example=("top",),
                           help="facet groups of the body that the rigid tool may touch, one or more; frictionless; "
@@ -982,8 +997,8 @@ def _render(raw: object, fibres: FibreSpec | None, materials: Sequence[MaterialS
 def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> ContactSpec:
     """A ``self``, ``pair`` or ``tool`` contact: its boundaries (one or more; two for a pair, each once), the file."""
     names = values["boundaries"]
-    if kind == "pair" and len(names) != 2:
-        raise CaseFileError(f"{where}.boundaries: a pair names exactly two facet groups, got {len(names)}")
+    if kind in ("pair", "tie") and len(names) != 2:
+        raise CaseFileError(f"{where}.boundaries: a {kind} names exactly two facet groups, got {len(names)}")
     if not names:
         raise CaseFileError(f"{where}.boundaries: name at least one facet group")
     twice = [name for i, name in enumerate(names) if name in names[:i]]
@@ -1009,6 +1024,7 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
         scale=values.get("scale"),
         safety=values.get("safety"),
         name=values.get("name"),
+        tolerance=values.get("tolerance"),
     )
 
 

@@ -55,8 +55,8 @@ SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
 FIBRE_TYPES = ("laplace", "constant", "file")
 REPRESENTATIONS = ("DG0", "P1", "quadrature")
 BC_TYPES = ("clamp", "displacement", "rotation")
-CONTACT_TYPES = ("plane", "sphere", "self", "pair", "tool")
-MESH_CONTACT_TYPES = ("self", "pair", "tool")
+CONTACT_TYPES = ("plane", "sphere", "self", "pair", "tool", "tie")
+MESH_CONTACT_TYPES = ("self", "pair", "tool", "tie")
 """Contacts of boundary surfaces (triangles and edges) rather than of boundary nodes: ``boundaries``, 3D only."""
 LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
 PROFILE_TYPES = ("linear", "steady", "ramp", "table")
@@ -205,9 +205,12 @@ class ContactSpec:
         key: Key path (``"contact[0]"``).
         type: One of :data:`CONTACT_TYPES` (``"plane"``: :class:`~hyperfem.contact.PlaneContact`,
             ``"sphere"``: :class:`~hyperfem.contact.SphereContact`, ``"self"`` and ``"pair"``:
-            :class:`~hyperfem.contact.SurfaceContact`, ``"tool"``: :class:`~hyperfem.contact.ToolContact`).
+            :class:`~hyperfem.contact.SurfaceContact`, ``"tool"``: :class:`~hyperfem.contact.ToolContact`,
+            ``"tie"``: :class:`~hyperfem.contact.TieContact`).
         boundary: Facet group whose nodes may touch (plane, sphere); ``None`` for the others.
-        boundaries: Facet groups whose triangles may touch (self, pair, tool); ``None`` for plane and sphere.
+        boundaries: Facet groups whose triangles may touch (self, pair, tool) or are glued (tie: the slave,
+            then the master); ``None`` for plane and sphere.
+        tolerance: A tie's largest reference distance between the glued groups, or ``None`` (the default).
         file: The tool's surface file (absolute); ``None`` but for a tool.
         offset: Translation applied once to the tool's points, or ``None``.
         scale: Factor applied once to the tool's points, or ``None`` (1).
@@ -245,6 +248,7 @@ class ContactSpec:
     scale: float | None = None
     safety: float | None = None
     name: str | None = None
+    tolerance: float | None = None
 
 
 @dataclass(frozen=True)
