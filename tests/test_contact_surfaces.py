@@ -267,3 +267,60 @@ def test_self_contact_of_one_group_equals_the_pair():
     assert contact.surface.size == pair.surface.size and contact.active_count() == pair.active_count()
     reaction = ReactionForce(pair_problem, "upper_top")()
     assert ReactionForce(problem, "upper_top")() == pytest.approx(reaction, rel=1e-10, abs=1e-10 * abs(reaction[2]))
+
+
+# -- friction on a triangulated tool --------------------------------------------------------------------------------
+
+MU = 0.3
+# A plate whose inner edge (3, -1) -> (-1, 4.5) is parallel to no edge of the cube's mesh. Parallel edges make
+# mollified edge-edge pairs in IPC, whose mollifier's gradient leaves a lateral force of some % of the normal
+# one: with the square PLATE's diagonal under the cube's x = y edges, 4 % of N along x and y.
+ROUGH_PLATE = PLATE + np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.5, 0.0]])
+ROUGH_TRIANGLES = np.array([[0, 1, 3], [1, 2, 3]])
+
+
+def _on_rough_tool(comm, mode: str, ratio: float = 0.0):
+    """The cube pressed 0.05 on the plate (t in [0, 1]) with friction MU, then pushed along x (t in [1, 2]):
+    a dead traction ``ratio * MU * N`` on the top (``mode="traction"``) or the top moved 0.2 (``"displacement"``)."""
+    from hyperfem.loading import Ramp
+
+    scale = [0.0]
+    bcs = [hf.PrescribedDisplacement("top", [-0.05], components=[2], profile=Ramp(1.0))]
+    loads = []
+    if mode == "traction":
+        loads = [hf.DeadTraction("top", (1.0, 0.0, 0.0), profile=lambda t: scale[0] * min(max(t - 1.0, 0.0), 1.0))]
+    else:
+        bcs.append(hf.PrescribedDisplacement("top", [0.2], components=[0], profile=Ramp(2.0, t0=1.0)))
+    material = lambda F: hf.materials.neo_hookean(F, PARAMS)  # noqa: E731
+    problem = hf.HyperelasticProblem(_cube(comm, 2), material, bcs=bcs, loads=loads)
+    tool = ToolContact.from_arrays(["bottom"], ROUGH_PLATE, ROUGH_TRIANGLES, dhat=DHAT, friction=MU).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[tool], check_rigid_motion=False)
+    stepping = hf.LoadStepping(initial_increment=0.25, max_increment=0.25)
+    hf.solve_quasistatic(solver, 1.0, stepping=stepping)
+    scale[0] = ratio * MU * float(tool.force()[2])
+    before = tool.surface.positions(problem.u.x.array)[:, 0]
+    hf.solve_quasistatic(solver, 2.0, stepping=stepping)
+    slip = float(np.abs(tool.surface.positions(problem.u.x.array)[:, 0] - before).max())
+    return problem, tool, scale[0], slip
+
+
+def test_tool_friction_sticks_below_mu_n():
+    """A push of half mu N: the friction force balances it to 1e-8, the normal force stays normal, the bottom sticks.
+
+    Sticking: the bottom moves 1.1e-3 in all (11 epsilon: the lag's elastic stick plus a partial slip of the pairs
+    that carry less normal force), where the block dragged in the next test slides 0.15.
+    """
+    problem, tool, T, slip = _on_rough_tool(MPI.COMM_WORLD, "traction", 0.5)
+    friction = tool.friction_force()
+    assert friction[0] == pytest.approx(-T, rel=1e-8) and abs(friction[1]) < 1e-8 * T
+    assert np.abs(tool.force()[:2]).max() < 1e-8 * tool.force()[2]
+    assert slip < 20 * tool.friction_epsilon
+    assert tool.record()["tool_friction_force"] == pytest.approx(list(friction), abs=1e-14)
+
+
+@pytest.mark.serial  # the friction's 2-rank path: the stick test above runs on 2 ranks too
+def test_tool_friction_slides_at_mu_n():
+    """The top dragged 0.2 along x: the bottom slides (>> epsilon) and the friction force is mu N to 0.5 %."""
+    problem, tool, _, slip = _on_rough_tool(MPI.COMM_WORLD, "displacement")
+    assert slip > 100 * tool.friction_epsilon
+    assert -tool.friction_force()[0] == pytest.approx(MU * tool.force()[2], rel=5e-3)

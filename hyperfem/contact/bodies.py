@@ -74,6 +74,10 @@ class SurfaceContact:
         stiffness: ``ipctk``'s barrier stiffness :math:`\kappa > 0`, on squared distances (``None``: the
             default of :func:`surface_defaults`; fixed for the run).
         safety: The collision filter's :math:`s \in (0, 1)`.
+        friction: Coulomb coefficient :math:`\mu \ge 0` (0: frictionless), smoothed and lagged per step
+            as in IPC (``ipctk``'s tangential collisions and friction potential; :mod:`~hyperfem.contact.mesh_barrier`).
+        friction_epsilon: The slip length :math:`\epsilon > 0` below which a pair sticks elastically
+            (``None``: :math:`0.1\,\hat d`).
         name: Prefix of the output columns (``contact_force``, ...).
 
     Raises:
@@ -86,13 +90,15 @@ class SurfaceContact:
     stiffness: float | None = None
     safety: float = CCD_SAFETY
     name: str = "contact"
+    friction: float = 0.0
+    friction_epsilon: float | None = None
 
     def __post_init__(self) -> None:
         names, where = check_boundaries(self.boundaries, "SurfaceContact")
         object.__setattr__(self, "boundaries", tuple(names))
         check_contact_settings(
-            where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=0.0,
-            friction_epsilon=None, profile=linear_profile, name=self.name,
+            where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=self.friction,
+            friction_epsilon=self.friction_epsilon, profile=linear_profile, name=self.name,
         )
 
     @property
@@ -111,5 +117,6 @@ class SurfaceContact:
         surface = contact_surface(problem, self.boundaries, self.where)
         dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
         return MeshBarrier(
-            self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety
+            self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
+            friction=self.friction, friction_epsilon=self.friction_epsilon
         )

@@ -44,6 +44,17 @@ instead stalled the sphere indenting a finer slab (10 x 10 x 5 boxes:
 rule above it reaches half the slab's thickness at 10 x 10 x 5 and
 14 x 14 x 7 boxes, and at :math:`\hat d` from 1e-3 to 5e-3.
 
+**Friction** (``friction`` :math:`\mu > 0`): smoothed Coulomb friction, lagged
+per step as in IPC, from ``ipctk``: at every accepted state (:meth:`MeshBarrier.lag`)
+the active pairs become ``TangentialCollisions`` with their normal force
+magnitudes and tangent bases, fixed during the next step; the dissipative
+potential :math:`D` of ``FrictionPotential`` (its :math:`\epsilon_v` our slip
+length ``friction_epsilon``) is evaluated on the vertices' displacement since
+the lag, the tool's motion included (the relative slip), and added to the
+energy, gradient and (projected) Hessian. Checked: a block on a rough plate
+pushed by half :math:`\mu N` holds it to 1e-8, dragged it slides at
+:math:`\mu N` to 0.03 %.
+
 **Step filter** (:class:`MeshCollisionFilter`): ``ipctk``'s continuous
 collision detection of the linear trajectory from the iterate to the full
 Newton step, with ``AdditiveCCD`` (TightInclusion, the default, is
@@ -194,6 +205,8 @@ class MeshBarrier:
         stiffness: float,
         safety: float,
         tool: RigidSurface | None = None,
+        friction: float = 0.0,
+        friction_epsilon: float | None = None,
     ):
         self.ipctk = ipctk = require_ipctk(where)
         self.contact = contact
@@ -229,6 +242,11 @@ class MeshBarrier:
         self.time = float(problem.time)
         self._tool_now = None if tool is None else tool.vertices(self.time)
         self.step_filter = MeshCollisionFilter(self, float(safety))
+        self.mu = float(friction)
+        self.friction_epsilon = float(friction_epsilon) if friction_epsilon is not None else 0.1 * self.dhat
+        self._friction = ipctk.FrictionPotential(self.friction_epsilon) if self.mu > 0.0 else None
+        self._lagged: tuple[np.ndarray, Any] | None = None
+        self._pending: tuple[np.ndarray, Any] | None = None
         self._check_start()
 
     # -- states -------------------------------------------------------------
@@ -240,6 +258,8 @@ class MeshBarrier:
         self._cache = None
         self._tangent_at = None
         self._project = False
+        if self._pending is not None:
+            self._lagged, self._pending = self._pending, None
 
     def project_tangent(self) -> None:
         """Project the Hessian at the next tangent, and until the iterates settle again (module docstring)."""
@@ -269,6 +289,47 @@ class MeshBarrier:
             return float("inf")
         return float(np.sqrt(collisions.compute_minimum_distance(self.mesh, _f(V))))
 
+    # -- friction -------------------------------------------------------------
+    def lag(self, u: np.ndarray) -> None:
+        r"""Take the friction's lag at the state ``u``: the vertices, the pairs, their normal forces and bases.
+
+        ``ipctk``'s ``TangentialCollisions`` of the pairs active at ``u`` (their
+        normal force magnitudes :math:`\lambda_k` and tangent bases, fixed
+        within the next step, as in IPC). It comes into use at the next
+        :meth:`update` (the start of the next solve); called after every
+        converged solve (:meth:`~hyperfem.solver.external.ExternalTerms.remember`).
+        """
+        if self._friction is None:
+            return
+        V = self.vertices(u)
+        tangential = self.ipctk.TangentialCollisions()
+        collisions = self._collisions(V)
+        if len(collisions):
+            tangential.build(self.mesh, _f(V), collisions, self.potential, self.mu)
+        self._pending = (V.copy(), tangential)
+
+    def _slip(self, u: np.ndarray) -> tuple[Any, np.ndarray] | None:
+        """The lagged tangential pairs and the vertices' displacement since the lag (the tool's included)."""
+        if self._friction is None or self._lagged is None or not len(self._lagged[1]):
+            return None
+        return self._lagged[1], _f(self.vertices(u) - self._lagged[0])
+
+    def friction_energy(self, u: np.ndarray) -> float:
+        r"""The smoothed Coulomb dissipation potential :math:`D` of the lagged pairs (``ipctk.FrictionPotential``)."""
+        slip = self._slip(u)
+        return 0.0 if slip is None else float(self._friction(slip[0], self.mesh, slip[1]))  # type: ignore[misc, unused-ignore]
+
+    def _friction_gradient(self, u: np.ndarray) -> np.ndarray:
+        slip = self._slip(u)
+        if slip is None:
+            return np.zeros(3 * (self.surface.size + (0 if self.tool is None else len(self.tool.points))))
+        return np.asarray(self._friction.gradient(slip[0], self.mesh, slip[1])).ravel()  # type: ignore[union-attr, unused-ignore]
+
+    def friction_force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
+        r"""The friction force on the body's surface nodes, :math:`-\sum_a \partial D/\partial x_a`."""
+        g = self._friction_gradient(self._state(u)).reshape(-1, 3)[: self.surface.size]
+        return -g.sum(axis=0)
+
     # -- the ExternalEnergy contract ----------------------------------------
     def energy(self, u: np.ndarray) -> float:
         r"""Rank 0's :math:`\kappa B` (the whole barrier; 0 on the other ranks), ``inf`` where a pair touches."""
@@ -277,6 +338,7 @@ class MeshBarrier:
         if len(collisions) and not self._min_distance(V) > 0.0:
             return float("inf")
         value = float(self.potential(collisions, self.mesh, _f(V))) if len(collisions) else 0.0
+        value += self.friction_energy(u)
         return value if self.comm.rank == 0 else 0.0
 
     def _gradient_full(self, u: np.ndarray) -> np.ndarray:
@@ -288,8 +350,10 @@ class MeshBarrier:
 
     def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`\partial\kappa B/\partial u` at this rank's owned surface nodes: ``(dofs, values)``, ``(m, 3)``."""
-        g = self._gradient_full(u).reshape(-1, 3)
-        return self.surface.dofs, g[self.surface.rows]
+        g = self._gradient_full(u)
+        if self._friction is not None:
+            g = g + self._friction_gradient(u)
+        return self.surface.dofs, g.reshape(-1, 3)[self.surface.rows]
 
     def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """No node blocks: the Hessian couples nodes and comes from :meth:`coupled_hessian`."""
@@ -303,7 +367,7 @@ class MeshBarrier:
         """
         V = self.vertices(u)
         collisions = self._collisions(V)
-        if not len(collisions):
+        if not len(collisions) and self._slip(u) is None:
             empty = np.zeros(0, dtype=np.int64)
             return empty, empty, np.zeros(0)
         # Projected while the iterates move by more than d-hat, exact once they settle (module docstring).
@@ -315,6 +379,9 @@ class MeshBarrier:
             self._tangent_at = None
         method = self.ipctk.PSDProjectionMethod
         H = self.potential.hessian(collisions, self.mesh, _f(V), method.NONE if self.exact_tangent else method.CLAMP)
+        slip = self._slip(u)
+        if slip is not None:  # the friction's Hessian, projected (ipctk's is indefinite where the slip is large)
+            H = H + self._friction.hessian(slip[0], self.mesh, slip[1], method.CLAMP)  # type: ignore[union-attr, unused-ignore]
         H = H.tocoo()
         keep = self._own[H.row] & ~self._fixed[H.row] & ~self._fixed[H.col] & (H.data != 0.0)
         return self._global[H.row[keep]], self._global[H.col[keep]], np.asarray(H.data[keep], dtype=float)
@@ -432,11 +499,14 @@ class MeshBarrier:
         ``_min_distance``."""
         name = self.contact.name
         group = None if self.tool is not None else 0
-        return {
+        out: dict[str, object] = {
             f"{name}_force": [float(v) for v in self.force(group=group)],
             f"{name}_active": self.active_count(),
             f"{name}_min_distance": self.min_distance(),
         }
+        if self.mu > 0.0:
+            out[f"{name}_friction_force"] = [float(v) for v in self.friction_force()]
+        return out
 
 
 class MeshCollisionFilter:

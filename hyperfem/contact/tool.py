@@ -83,6 +83,10 @@ class ToolContact:
         dhat: Barrier width :math:`\hat d > 0` (``None``: 1 % of the smallest mean facet size of the groups).
         stiffness: ``ipctk``'s barrier stiffness (``None``: :func:`~hyperfem.contact.bodies.surface_defaults`).
         safety: The collision filter's :math:`s \in (0, 1)`.
+        friction: Coulomb coefficient :math:`\mu \ge 0` (0: frictionless), smoothed and lagged per step
+            as in IPC (``ipctk``'s tangential collisions and friction potential; :mod:`~hyperfem.contact.mesh_barrier`).
+        friction_epsilon: The slip length :math:`\epsilon > 0` below which a pair sticks elastically
+            (``None``: :math:`0.1\,\hat d`).
         name: Prefix of the output columns.
         points: The tool's points (instead of ``file``).
         triangles: The tool's triangles (instead of ``file``).
@@ -102,6 +106,8 @@ class ToolContact:
     stiffness: float | None = None
     safety: float = CCD_SAFETY
     name: str = "tool"
+    friction: float = 0.0
+    friction_epsilon: float | None = None
     points: np.ndarray | None = None
     triangles: np.ndarray | None = None
 
@@ -122,8 +128,8 @@ class ToolContact:
         if not (isinstance(self.scale, (int, float)) and np.isfinite(self.scale) and self.scale > 0):
             raise ParameterError(f"{where}: scale must be a number > 0, got {self.scale!r}")
         check_contact_settings(
-            where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=0.0,
-            friction_epsilon=None, profile=self.profile, name=self.name,
+            where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=self.friction,
+            friction_epsilon=self.friction_epsilon, profile=self.profile, name=self.name,
         )
         if (self.file is None) == (self.points is None):
             raise ParameterError(f"{where}: give either file or points and triangles")
@@ -172,5 +178,6 @@ class ToolContact:
         dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
         return MeshBarrier(
             self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
+            friction=self.friction, friction_epsilon=self.friction_epsilon,
             tool=self.surface,
         )
