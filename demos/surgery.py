@@ -27,8 +27,10 @@
 # Checked here, at every step: the contact force equals minus the reaction
 # of the clamped bottom (equilibrium of the slab, to round-off), and no
 # triangle of the probe and the tissue intersect (``ipctk.has_intersections``).
-# Frictionless: dragging, the probe ploughs a moving dent, and the horizontal
-# force is the resistance of the tissue ahead of it.
+# With friction ($\mu = 0.3$ by default, smoothed Coulomb, lagged per step as
+# in IPC) the dragged probe also pulls the tissue's surface along: the
+# horizontal force is the friction plus the resistance of the tissue ahead of
+# it (``--friction 0`` for a frictionless probe, which only ploughs).
 #
 # Run with `python demos/surgery.py` or `mpiexec -n 2 python demos/surgery.py`
 # (needs the contact extra: `pip install 'hyperfem[contact]'`).
@@ -64,6 +66,7 @@ def parse(argv=None):
     p.add_argument("--drag", type=positive_float, default=0.4, help="how far the probe is dragged along x")
     p.add_argument("--steps", type=positive_int, default=8, help="load steps (half indenting, half dragging)")
     p.add_argument("--dhat", type=positive_float, default=5e-3, help="barrier width")
+    p.add_argument("--friction", type=float, default=0.3, help="Coulomb coefficient between probe and tissue")
     p.add_argument("--output", type=Path, default=Path("output"), help="output folder (surgery.json)")
     return p.parse_args(argv)
 
@@ -101,7 +104,7 @@ class IntersectionCheck:
 
 
 # %%
-def surgery(comm, n: int, depth: float, drag: float, steps: int, dhat: float) -> dict:
+def surgery(comm, n: int, depth: float, drag: float, steps: int, dhat: float, friction: float) -> dict:
     box = [np.zeros(3), np.array([2.0, 1.0, 0.5])]
     mesh = dmesh.create_box(comm, box, [2 * n, n, max(1, n // 2)])
     groups = {"bottom": lambda x: np.isclose(x[2], 0.0), "top": lambda x: np.isclose(x[2], 0.5)}
@@ -110,13 +113,17 @@ def surgery(comm, n: int, depth: float, drag: float, steps: int, dhat: float) ->
                                      bcs=[hf.PrescribedDisplacement("bottom", [0.0, 0.0, 0.0])])
     points, triangles = icosphere(3)
     probe = points * RADIUS + np.array([0.6, 0.5, 0.5 + LIFT + RADIUS])
-    tool = ToolContact.from_arrays(["top"], probe, triangles, motion=path(depth, drag), dhat=dhat).bind(problem)
+    tool = ToolContact.from_arrays(
+        ["top"], probe, triangles, motion=path(depth, drag), dhat=dhat, friction=friction
+    ).bind(problem)
     solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-9}, external_energies=[tool])
     outputs = [Recorder(tool), Reaction("bottom"), Recorder(IntersectionCheck(tool))]
     policy = hf.StepPolicy(increment=1.0 / steps)
     summary = Simulation(problem, solver, policy, outputs, name="surgery").run()
     rows = summary["rows"][1:]
     force = np.array([row["tool_force"] for row in rows])
+    if friction > 0.0:  # the total force of the probe on the tissue: normal (barrier) and friction parts
+        force = force + np.array([row["tool_friction_force"] for row in rows])
     reaction = np.array([row["reaction_bottom"] for row in rows])
     balance = float(np.abs(force + reaction).max() / np.abs(force).max())
     return {
@@ -137,7 +144,7 @@ def main(argv=None):
     args = parse(argv)
     comm = MPI.COMM_WORLD
     ensure_output_dir(args.output, comm)
-    result = surgery(comm, args.n, args.depth, args.drag, args.steps, args.dhat)
+    result = surgery(comm, args.n, args.depth, args.drag, args.steps, args.dhat, args.friction)
     if comm.rank == 0:
         (args.output / "surgery.json").write_text(json.dumps(result, indent=2))
         print(
