@@ -446,7 +446,7 @@ def test_surface_contact_keys_reach_the_script(shared_tmp):
         ('boundaries = ["lower_top", "lower_top"]', "contact[0].boundaries: 'lower_top' is named twice"),
         ('boundary = "lower_top"', "contact[0].boundary: unknown key (did you mean 'boundaries'?); keys of a contact "
                                    "of type 'pair': type, boundaries, dhat, stiffness, safety, name"),
-        ('friction = 0.3', "contact[0].friction: unknown key; keys of a contact of type 'pair'"),
+        ('friction = -0.3', "contact[0].friction: must be >= 0"),
         ('safety = 1.0', "contact[0].safety: must be < 1, got 1.0"),
         ('name = "a b"', "contact[0].name: use letters, digits and _.+- only"),
     ],
@@ -465,8 +465,7 @@ def test_bad_pair_entries_are_one_line(shared_tmp, change, expected):
     "old, new, expected",
     [
         ('file = "plate.stl"', 'file = "missing.stl"', "contact[0].file: tool surface file not found: "),
-        ('dhat = 1e-3', 'dhat = 1e-3\nfriction = 0.2',
-         "contact[0].friction: unknown key; keys of a contact of type 'tool': type, boundaries, file, motion"),
+        ('dhat = 1e-3', 'dhat = 1e-3\nfriction_epsilon = 0.0', "contact[0].friction_epsilon: must be > 0"),
         ('dhat = 1e-3', 'dhat = 1e-3\nmotion = [0.0, 1.0]', "contact[0].motion: expected 3 numbers, got 2"),
         ('dhat = 1e-3', 'dhat = 1e-3\nscale = 0.0', "contact[0].scale: must be > 0"),
         ('boundaries = ["bottom"]', 'boundaries = []', "contact[0].boundaries: name at least one facet group"),
@@ -535,3 +534,16 @@ def test_tie_case_glues_two_blocks_in_tension(shared_tmp):
     assert rows[-1]["contact_force"][2] == pytest.approx(-rows[-1]["reaction_upper_top_Fz"], rel=1e-7)
     assert rows[-1]["reaction_upper_top_Fz"] == pytest.approx(0.0930774, rel=1e-5)
     assert rows[-1]["contact_max_gap"] < 1e-8
+
+
+def test_friction_of_a_tool_reaches_the_script_and_the_columns(shared_tmp):
+    """``friction`` on a tool: ToolContact(..., friction=0.2), and the column contact_friction_force."""
+    folder = shared_tmp / "rough_tool"
+    if MPI.COMM_WORLD.rank == 0:
+        folder.mkdir(exist_ok=True)
+    MPI.COMM_WORLD.Barrier()
+    case = load_case(_write_tool(folder, TOOL.replace("dhat = 1e-3", "dhat = 1e-3\nfriction = 0.2", 1)),
+                     output=folder / "out")
+    assert "friction=0.2" in script(case)
+    rows = build(case).simulation.run()["rows"]
+    assert "contact_friction_force" in rows[-1]

@@ -456,6 +456,10 @@ def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
     for key in ("dhat", "stiffness", "safety"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
+    if contact.friction > 0.0:
+        kwargs["friction"] = contact.friction
+        if contact.friction_epsilon is not None:
+            kwargs["friction_epsilon"] = contact.friction_epsilon
     kind = ToolContact if tool else SurfaceContact
     if name != kind.name:  # the output columns: contact_force, contact_0_force, ... (the class's default: tool)
         kwargs["name"] = name

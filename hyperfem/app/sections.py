@@ -92,8 +92,8 @@ TOP = {
     "bc": Key("tables", help="Dirichlet conditions, one [[bc]] each; its keys depend on type"),
     "load": Key("tables", help="loads, one [[load]] each; its keys depend on type"),
     "contact": Key("tables", help="contact with obstacles, one [[contact]] each: a rigid plane, sphere or triangulated "
-                   "tool, self-contact, two bodies of one mesh (intersection-free, friction on plane and sphere: "
-                   "hyperfem.contact; needs pip install 'hyperfem[contact]'); its keys depend on type"),
+                   "tool, self-contact, two bodies of one mesh (intersection-free, with friction), or two glued groups "
+                   "(hyperfem.contact; needs pip install 'hyperfem[contact]'); its keys depend on type"),
     "stepping": Key("table", help="a load ramp (type = \"quasi-static\", the default) or a time integration "
                     "(type = \"dynamic\"); its keys depend on type"),
     "solver": Key("table", help="Newton's method (hf.NewtonSolver) and PETSc options"),
@@ -278,6 +278,12 @@ def _surface_keys(default_name: str) -> dict[str, Key]:
         "name": Key("string", pattern=NAME.pattern, example=default_name,
                     help="prefix of the output columns (NAME_force, NAME_active, NAME_min_distance); default "
                     "contact, or contact_0, contact_1, ... when there are several contacts"),
+        "friction": Key("number", minimum=0.0, default=0.0,
+                        help="Coulomb coefficient mu >= 0 (0: frictionless); smoothed and lagged per step as in IPC "
+                        "(ipctk's friction potential); adds the column NAME_friction_force"),
+        "friction_epsilon": Key("number", above=0.0, example=1.0e-4,
+                                help="friction's slip length in m below which a pair sticks elastically; "
+                                "default 0.1 dhat"),
     }
 
 
@@ -300,13 +306,13 @@ CONTACTS = {
     "self": {
         "boundaries": Key("strings", required=True, example=("surface",),
                           help="facet groups whose triangles may touch each other and themselves (self-contact), "
-                          "one or more; frictionless"),
+                          "one or more"),
         **_surface_keys("contact"),
     },
     "pair": {
         "boundaries": Key("strings", required=True, example=("lower_top", "upper_bottom"),
                           help="the two facet groups of two bodies of one mesh that may touch (each may touch "
-                          "itself too); frictionless; the force output is the force on the first"),
+                          "itself too); the force output is the force on the first"),
         **_surface_keys("contact"),
     },
     "tie": {
@@ -326,7 +332,7 @@ CONTACTS = {
     },
     "tool": {
         "boundaries": Key("strings", required=True, example=("top",),
-                          help="facet groups of the body that the rigid tool may touch, one or more; frictionless; "
+                          help="facet groups of the body that the rigid tool may touch, one or more; "
                           "the force output is the tool's force on the body"),
         "file": Key("string", required=True, example="spatula.stl",
                     help="the tool's triangulated surface (STL, OBJ, PLY, VTK/VTU or gmsh, read by meshio), "
@@ -1025,6 +1031,8 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
         safety=values.get("safety"),
         name=values.get("name"),
         tolerance=values.get("tolerance"),
+        friction=values.get("friction", 0.0),
+        friction_epsilon=values.get("friction_epsilon"),
     )
 
 
