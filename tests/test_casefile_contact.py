@@ -76,6 +76,14 @@ def test_block_on_plane_matches_the_closed_form_and_the_reaction(shared_tmp):
     force = summary["rows"][-1]["contact_force"][2]
     assert force == pytest.approx(-uniaxial_stress(height), rel=1e-3)
     assert force == pytest.approx(2.393e5, rel=2e-3)  # this mesh and d-hat: 239329 N (serial and 2 ranks)
+    # The summary's contact entry (one per [[contact]], like reactions): the last force, its moment about the origin
+    # (the centre of the pressure at the middle of the laterally expanded bottom, x = y = width / 2), pairs, gap.
+    entry = summary["contact"]["contact"]
+    assert entry["type"] == "PlaneContact" and entry["boundaries"] == ["bottom"]
+    assert entry["force"] == summary["rows"][-1]["contact_force"] and entry["active"] > 0
+    x = barrier.nodes.positions(u)[:, 0]
+    width = comm.allreduce(float(x.max()) if len(x) else 0.0, op=MPI.MAX)
+    assert entry["moment"] == pytest.approx([force * width / 2, -force * width / 2, 0.0], rel=1e-3, abs=1e-6 * force)
 
 
 @pytest.mark.parametrize(

@@ -282,3 +282,14 @@ def test_progress_line_has_units():
     assert "u(probe 0) = (0.1, 0.2, 0.3) m" in static
     dynamic = progress_line({**row, "kinetic_energy": 5.0})
     assert "t = 0.05 s" in dynamic and "dt = 0.05 s" in dynamic and "K = 5 J" in dynamic
+
+
+def test_progress_line_names_contacts_and_ties():
+    """A contact's columns (force, active, min distance) and a tie's gap reach the progress line."""
+    from hyperfem.app.report import progress_line
+
+    row = {"step": 2, "time": 0.5, "dt": 0.25, "newton_iterations": 4, "residual": 1e-9, "min_J": 0.9,
+           "contact_force": [0.0, 0.0, 2.0], "contact_active": 20, "contact_min_distance": 2.5e-5,
+           "glue_force": [1.0, 0.0, 0.0], "glue_max_gap": 1e-10}
+    line = progress_line(row)
+    assert "contact: 20 active, d_min 2.5e-05, F = (0, 0, 2) N" in line and "glue: gap 1e-10 m" in line

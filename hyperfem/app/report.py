@@ -54,6 +54,13 @@ def progress_line(row: dict) -> str:
     for name, force in forces.items():
         if name != "total":
             parts.append(f"F[{name}] = {_vector(force)} N")
+    for key in row:
+        if key.endswith("_min_distance") and f"{key[:-13]}_force" in row:  # a contact: pairs, gap, force
+            name = key[: -len("_min_distance")]
+            force = row[f"{name}_force"]
+            parts.append(f"{name}: {row.get(name + '_active', 0)} active, d_min {row[key]:.3g}, F = {_vector(force)} N")
+        elif key.endswith("_max_gap") and f"{key[:-8]}_force" in row:  # a tie
+            parts.append(f"{key[:-8]}: gap {row[key]:.2g} m")
     if "probe_displacement" in row and row["probe_displacement"]:
         parts.append(f"u(probe 0) = {_vector(row['probe_displacement'][0])} m")
     if "kinetic_energy" in row:

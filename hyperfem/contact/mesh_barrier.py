@@ -482,6 +482,33 @@ class MeshBarrier:
             g = g[self.surface.group == group]
         return -g.sum(axis=0)
 
+    def moment(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
+        r"""The moment about the origin of the contact forces (friction included) on the surface nodes.
+
+        :math:`\sum_a x_a \times f_a`, the same on every rank (collective).
+        """
+        state = self._state(u)
+        g = self._gradient_full(state)
+        if self._friction is not None:
+            g = g + self._friction_gradient(state)
+        x = self.surface.positions(state)
+        return np.cross(x, -g.reshape(-1, 3)[: self.surface.size]).sum(axis=0)
+
+    def summary(self) -> dict[str, object]:
+        """The summary's ``contact`` entry: type, boundaries, last force (the output's), moment, pairs, gap."""
+        group = None if self.tool is not None else 0
+        entry: dict[str, object] = {
+            "type": type(self.contact).__name__,
+            "boundaries": list(self.surface.boundaries),
+            "force": [float(v) for v in self.force(group=group)],
+            "moment": [float(v) for v in self.moment()],
+            "active": self.active_count(),
+            "min_distance": self.min_distance(),
+        }
+        if self.mu > 0.0:
+            entry["friction_force"] = [float(v) for v in self.friction_force()]
+        return {"contact": {self.contact.name: entry}}
+
     def active_count(self, u: np.ndarray | PETSc.Vec | None = None) -> int:
         r"""The number of primitive pairs closer than :math:`\hat d`."""
         return len(self._collisions(self.vertices(self._state(u))))

@@ -259,6 +259,41 @@ class NodalBarrier:
         local = values.sum(axis=0) if len(values) else np.zeros(self.nodes.X.shape[1])
         return -self.comm.allreduce(local, op=MPI.SUM)
 
+    def moment(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
+        r"""The moment about the origin of the obstacle's forces on the nodes (friction included): sum of x_a x f_a.
+
+        Collective; zero-padded to 3 components in 2D (the moment about z in the last).
+        """
+        state = self._state(u)
+        x = self.nodes.positions(state)
+        rows, first, _ = self._active(state)
+        parts = [(x[rows], -self.stiffness * first[:, None] * self.normals(state)[rows])]
+        if self.mu > 0.0 and self._lagged is not None:
+            friction_rows, ml, w, y = self._slips(state)
+            e = self.friction_epsilon
+            g = np.where(y < e, 2.0 / e - y / (e * e), 1.0 / np.maximum(y, e))
+            parts.append((x[friction_rows], -(ml * g)[:, None] * w))
+        local = np.zeros(3)
+        for points, forces in parts:
+            if len(points):
+                pad = lambda a: np.pad(a, ((0, 0), (0, 3 - a.shape[1])))  # noqa: E731
+                local += np.cross(pad(points), pad(forces)).sum(axis=0)
+        return self.comm.allreduce(local, op=MPI.SUM)
+
+    def summary(self) -> dict[str, object]:
+        """The summary's ``contact`` entry of this contact: type, boundary, last force, moment, active nodes, gap."""
+        entry: dict[str, object] = {
+            "type": type(self.contact).__name__,
+            "boundaries": [self.contact.boundary],
+            "force": [float(v) for v in self.force()],
+            "moment": [float(v) for v in self.moment()],
+            "active": self.active_count(),
+            "min_distance": self.min_distance(),
+        }
+        if self.mu > 0.0:
+            entry["friction_force"] = [float(v) for v in self.friction_force()]
+        return {"contact": {self.contact.name: entry}}
+
     def active_count(self, u: np.ndarray | PETSc.Vec | None = None) -> int:
         r"""Nodes with :math:`d_a < \hat d`, over all ranks (collective)."""
         return int(self.comm.allreduce(int((self.distances(self._state(u)) < self.dhat).sum()), op=MPI.SUM))

@@ -289,6 +289,16 @@ class TieBarrier:
         r = self._residuals(state).reshape(-1, 3)
         return float(np.linalg.norm(r, axis=1).max()) if len(r) else 0.0
 
+    def summary(self) -> dict[str, object]:
+        """The summary's ``contact`` entry: type, groups, last force on the slave group, largest gap."""
+        entry = {
+            "type": "TieContact",
+            "boundaries": [self.contact.slave, self.contact.master],
+            "force": [float(v) for v in self.force()],
+            "max_gap": self.max_gap(),
+        }
+        return {"contact": {self.contact.name: entry}}
+
     def record(self, step: object = None) -> dict[str, object]:
         """The output columns: ``<name>_force`` (on the slave group), ``<name>_max_gap``."""
         name = self.contact.name

@@ -522,9 +522,13 @@ class Recorder(Output):
         return dict(self.recorder.record(step)) if _due(step, self.every) else {}
 
     def summary(self, sim: Simulation, summary: dict) -> dict:
-        """The recorder's summary, if it has one."""
+        """The recorder's summary, if it has one; a table several recorders give (``contact``) is merged."""
         make = getattr(self.recorder, "summary", None)  # boundary: a user recorder may not summarize
-        return dict(make()) if callable(make) else {}
+        out = dict(make()) if callable(make) else {}
+        for key, value in out.items():
+            if isinstance(value, dict) and isinstance(summary.get(key), dict):
+                out[key] = {**summary[key], **value}
+        return out
 
     def state(self, sim: Simulation) -> dict | None:
         """The recorder's ``rows`` list, if it keeps one (e.g. :class:`~hyperfem.dynamics.Diagnostics`)."""
