@@ -8,7 +8,8 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
 (``Recorder(barrier)``).
 
 * Analytic rigid obstacles, per node (no gathering): :class:`PlaneContact`
-  (a half-space) and :class:`SphereContact`, with a prescribed translation
+  (a half-space), :class:`SphereContact` and :class:`CylinderContact`
+  (:mod:`~hyperfem.contact.cylinder`), with a prescribed translation
   and smoothed Coulomb friction (:mod:`~hyperfem.contact.nodal`,
   :mod:`~hyperfem.contact.plane`, :mod:`~hyperfem.contact.sphere`,
   :mod:`~hyperfem.contact.ccd`, :mod:`~hyperfem.contact.obstacles`).
@@ -42,6 +43,7 @@ from hyperfem.contact.ccd import (
     plane_step_fraction,
     sphere_step_fraction,
 )
+from hyperfem.contact.cylinder import CylinderBarrier, CylinderContact
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, default_dhat, default_stiffness
 from hyperfem.contact.nodes import BoundaryNodes, boundary_nodes, facet_size
 from hyperfem.contact.nodal import NodalBarrier
@@ -50,7 +52,7 @@ from hyperfem.contact.surface import ContactSurface, contact_surface
 from hyperfem.contact.shapes import icosphere
 from hyperfem.contact.tie import TIE_FACTOR, TieBarrier, TieContact
 from hyperfem.contact.tool import ToolContact, read_tool_surface
-from hyperfem.contact.obstacles import Ball, HalfSpace
+from hyperfem.contact.obstacles import Ball, Cylinder, HalfSpace
 from hyperfem.contact.plane import PlaneBarrier, PlaneContact
 from hyperfem.contact.sphere import SphereBarrier, SphereContact, project_psd
 
@@ -62,6 +64,9 @@ __all__ = [
     "Ball",
     "BoundaryNodes",
     "ContactSurface",
+    "Cylinder",
+    "CylinderBarrier",
+    "CylinderContact",
     "MeshBarrier",
     "MeshCollisionFilter",
     "RigidSurface",

@@ -150,6 +150,9 @@ class SphereCollisionFilter:
         center: The ball's centre now (called: it moves with the time).
         radius: :math:`R`.
         safety: :math:`s` (:data:`CCD_SAFETY`).
+        projector: For a cylinder, :math:`P = I - a a^T`: offsets and steps are
+            projected onto the plane normal to the axis, where the cylinder is a
+            circle and the same quadratic holds (``None``: a ball).
 
     Attributes:
         cutbacks: Always 0 (the filter never halves).
@@ -165,11 +168,13 @@ class SphereCollisionFilter:
         center: Callable[[], np.ndarray],
         radius: float,
         safety: float = CCD_SAFETY,
+        projector: np.ndarray | None = None,
     ):
         self.dofs = dofs
         self.X = X
         self.center = center
         self.radius = float(radius)
+        self.projector = projector
         self.safety = float(safety)
         self.cutbacks = 0
         self.filtered_steps = 0
@@ -185,6 +190,8 @@ class SphereCollisionFilter:
         comm = x.getComm().tompi4py()
         offset = self.X + x.array_r[self.dofs] - self.center()
         step = y.array_r[self.dofs]
+        if self.projector is not None:  # a cylinder: the motion in the plane normal to its axis
+            offset, step = offset @ self.projector, step @ self.projector
         d0 = np.linalg.norm(offset, axis=1) - self.radius
         lowest = comm.allreduce(float(d0.min()) if len(d0) else float("inf"), op=MPI.MIN)
         self.min_distance = min(self.min_distance, lowest)

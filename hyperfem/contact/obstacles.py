@@ -12,8 +12,10 @@ or time (:mod:`hyperfem.loading.profiles`, as for the values of a
 point :math:`x` from the plane is :math:`d(x) = (x - p(t))\cdot n`: positive
 on the body's side. A :class:`Ball` of radius :math:`R` centred at
 :math:`c(t) = c_0 + f(t)\,m` gives :math:`d(x) = |x - c(t)| - R`, positive
-outside. Rotating obstacles, cylinders and triangulated tools are later
-slices of issue 19.
+outside; an infinite :class:`Cylinder` of radius :math:`R` about the axis
+through :math:`c(t)` along the unit :math:`a` gives
+:math:`d(x) = |P(x - c(t))| - R`, :math:`P = I - a a^T`. Triangulated tools
+are :class:`~hyperfem.contact.ToolContact`.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.validation import check_callable, check_finite_vector, check_positive
 
-__all__ = ["Ball", "HalfSpace", "check_ball", "check_plane"]
+__all__ = ["Ball", "Cylinder", "HalfSpace", "check_ball", "check_plane"]
 
 
 def check_plane(
@@ -156,3 +158,64 @@ class Ball:
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
         r""":math:`|x - c(t)| - R` of points ``x`` (shape ``(m, dim)``): positive outside."""
         return np.linalg.norm(np.asarray(x, dtype=float) - self.origin(t), axis=1) - float(self.radius)
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    r"""A rigid infinite cylinder (a roller, a rod) of radius ``radius`` about the axis through ``point``.
+
+    Attributes:
+        point: A point of the axis at :math:`t` with ``profile(t) = 0``.
+        axis: The axis direction (normalised by :attr:`unit_axis`), 3 components.
+        radius: :math:`R > 0`.
+        motion: The translation :math:`m` (``None``: it stays).
+        profile: :math:`f(t)` of the translation (default: the load factor).
+    """
+
+    point: Sequence[float]
+    axis: Sequence[float]
+    radius: float
+    motion: Sequence[float] | None = None
+    profile: Callable[[float], float] = linear_profile
+
+    def __post_init__(self) -> None:
+        c, r, m = check_ball(self.point, self.radius, self.motion, "Cylinder")
+        a = check_finite_vector(self.axis, "Cylinder", "axis")
+        if len(c) != 3 or len(a) != 3:
+            raise ParameterError(f"Cylinder: point and axis must have 3 components, got {len(c)} and {len(a)}")
+        if not float(np.linalg.norm(a)) > 0.0:
+            raise ParameterError(f"Cylinder: axis must be a non-zero vector, got {a}")
+        check_callable(self.profile, "Cylinder", "profile")
+        object.__setattr__(self, "point", c)
+        object.__setattr__(self, "axis", a)
+        object.__setattr__(self, "radius", r)
+        object.__setattr__(self, "motion", m)
+
+    @property
+    def dim(self) -> int:
+        """The number of components (3)."""
+        return len(self.point)
+
+    @property
+    def unit_axis(self) -> np.ndarray:
+        """:math:`a / |a|`."""
+        a = np.asarray(self.axis, dtype=float)
+        return a / np.linalg.norm(a)
+
+    @property
+    def projector(self) -> np.ndarray:
+        """:math:`P = I - a a^T`, the projection onto the plane normal to the axis."""
+        a = self.unit_axis
+        return np.eye(3) - np.outer(a, a)
+
+    def origin(self, t: float) -> np.ndarray:
+        """The axis point :math:`c(t) = c_0 + f(t)\\,m` at time (load factor) ``t``."""
+        c = np.asarray(self.point, dtype=float)
+        if self.motion is None:
+            return c
+        return c + float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+
+    def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
+        r""":math:`|P(x - c(t))| - R` of points ``x`` (shape ``(m, 3)``): positive outside."""
+        q = (np.asarray(x, dtype=float) - self.origin(t)) @ self.projector
+        return np.linalg.norm(q, axis=1) - float(self.radius)
