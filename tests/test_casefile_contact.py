@@ -30,6 +30,7 @@ from case_texts import ROOT  # noqa: E402
 
 CASE = ROOT / "cases" / "block_on_plane.toml"
 SPHERE = {"type": "sphere", "center": [0.5, 0.5, -2.0005], "radius": 2.0, "dhat": 1e-3}
+CYLINDER = {"type": "cylinder", "point": [0.5, 0.0, -2.0005], "axis": [0.0, 1.0, 0.0], "radius": 2.0, "dhat": 1e-3}
 E, NU = 1.0e6, 0.3
 
 
@@ -94,7 +95,10 @@ def test_block_on_plane_matches_the_closed_form_and_the_reaction(shared_tmp):
         ({"normal": [0.0, 0.0, 0.0]}, "contact[0].normal: must not be zero"),
         ({"dhat": -1.0}, "contact[0].dhat: must be > 0, got -1.0"),
         ({"motion": [0.0, 1.0]}, "contact[0].motion: 2 components for a point of 3"),
-        ({"type": "cylinder"}, "contact[0].type: unknown value 'cylinder'"),
+        ({"type": "cone"}, "contact[0].type: unknown value 'cone'"),
+        (CYLINDER | {"axis": [0.0, 0.0, 0.0]}, "contact[0].axis: must not be zero"),
+        ({"type": "cylinder", "point": [0.5, 0.0, -2.0005], "radius": 1.0}, "contact[0]: missing required key 'axis'"),
+        (CYLINDER | {"point": [0.5, 0.0]}, "contact[0].point: expected 3 numbers, got 2"),
         ({"gap": 1.0}, "contact[0].gap: unknown key"),
         ({"type": "sphere"}, "contact[0].point: unknown key"),
         (SPHERE | {"radius": 0.0}, "contact[0].radius: must be > 0"),
@@ -109,7 +113,7 @@ def test_bad_contact_entries_name_their_key(shared_tmp, change, expected):
 
     data = tomllib.loads(CASE.read_text())
     data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
-    if change.get("type") == "sphere" and "radius" in change:
+    if change.get("type") in ("sphere", "cylinder") and "radius" in change:
         data["contact"][0] = {"boundary": "bottom"}
     data["contact"][0].update(change)
     with pytest.raises(CaseFileError) as info:
@@ -145,6 +149,33 @@ def test_sphere_contact_in_a_case_file(shared_tmp):
     assert summary["completed"] and rows[-1]["contact_active"] > 0 and rows[-1]["contact_force"][2] > 1e3
     for row in rows[1:]:  # (the nodes nearest the top of the sphere reach it after the first step)
         assert row["contact_min_distance"] > 0.0
+        assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8, abs=1e-6)
+
+
+def test_cylinder_contact_in_a_case_file(shared_tmp):
+    """``type = "cylinder"``: CylinderContact in the script; the block pressed 2 cm on a roller along y: the force
+    balances the reaction at every step, none along the axis, never penetrating."""
+    import tomllib
+
+    from hyperfem.app.casefile import check_case
+    from hyperfem.contact import CylinderBarrier
+
+    data = tomllib.loads(CASE.read_text())
+    data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+    data["contact"][0] = {"boundary": "bottom", **CYLINDER}
+    data["bc"][2]["value"] = [-0.02]
+    data["output"].update({"fields": [], "checkpoint": False, "directory": str(shared_tmp / "cylinder")})
+    case = check_case(data, shared_tmp / "cylinder.toml")
+    text = script(case)
+    assert ("contact = CylinderContact('bottom', point=(0.5, 0.0, -2.0005), axis=(0.0, 1.0, 0.0), radius=2.0, "
+            "dhat=0.001).bind(") in text
+    built = build(case)
+    assert isinstance(built.variables["contact"], CylinderBarrier)
+    summary = built.simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and rows[-1]["contact_active"] > 0
+    for row in rows[1:]:
+        assert row["contact_min_distance"] > 0.0 and abs(row["contact_force"][1]) < 1e-9 * row["contact_force"][2]
         assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8, abs=1e-6)
 
 

@@ -25,7 +25,7 @@ from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
 from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
-from hyperfem.contact import PlaneContact, SphereContact, SurfaceContact, TieContact, ToolContact
+from hyperfem.contact import CylinderContact, PlaneContact, SphereContact, SurfaceContact, TieContact, ToolContact
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -468,7 +468,8 @@ def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
 
 def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call:
     """``[[contact]]``: :class:`~hyperfem.contact.PlaneContact` (``type = "plane"``) or
-    :class:`~hyperfem.contact.SphereContact` (``"sphere"``) bound to the problem; the surface
+    :class:`~hyperfem.contact.SphereContact` (``"sphere"``) or :class:`~hyperfem.contact.CylinderContact`
+    (``"cylinder"``) bound to the problem; the surface
     contacts (``"self"``, ``"pair"``, ``"tool"``): :func:`_surface_contact`."""
     if contact.type == "tie":
         assert contact.boundaries is not None
@@ -477,12 +478,12 @@ def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call
         return Call.of(Attr(Call.of(TieContact, *contact.boundaries, **tie), "bind"), Ref("problem"))
     if contact.boundaries is not None:
         return _surface_contact(case, contact, contact.name or name)
-    sphere = contact.type == "sphere"
-    kwargs: dict[str, object] = (
-        {"center": contact.center, "radius": contact.radius}
-        if sphere
-        else {"point": contact.point, "normal": contact.normal}
-    )
+    shapes: dict[str, tuple[type, dict[str, object]]] = {
+        "sphere": (SphereContact, {"center": contact.center, "radius": contact.radius}),
+        "cylinder": (CylinderContact, {"point": contact.point, "axis": contact.axis, "radius": contact.radius}),
+        "plane": (PlaneContact, {"point": contact.point, "normal": contact.normal}),
+    }
+    obstacle, kwargs = shapes[contact.type]
     for key in ("dhat", "stiffness", "motion"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
@@ -495,7 +496,6 @@ def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call
         kwargs["profile"] = profile
     if several:
         kwargs["name"] = name  # the output columns: contact_0_force, ...
-    obstacle = SphereContact if sphere else PlaneContact
     return Call.of(Attr(Call.of(obstacle, contact.boundary, **kwargs), "bind"), Ref("problem"))
 
 

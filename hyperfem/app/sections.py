@@ -303,6 +303,15 @@ CONTACTS = {
         "radius": Key("number", required=True, above=0.0, example=0.3, help="the sphere's radius in m"),
         **_barrier_keys("sphere"),
     },
+    "cylinder": {
+        "boundary": _NODE_BOUNDARY,
+        "point": Key("vector", length=3, required=True, example=(0.5, 0.0, 1.3),
+                     help="a point of the cylinder's axis in m (where it is at profile 0)"),
+        "axis": Key("vector", length=3, required=True, example=(0.0, 1.0, 0.0),
+                    help="the axis direction (any length > 0); the cylinder is infinite, the body stays outside it"),
+        "radius": Key("number", required=True, above=0.0, example=0.2, help="the cylinder's radius in m"),
+        **_barrier_keys("cylinder"),
+    },
     "self": {
         "boundaries": Key("strings", required=True, example=("surface",),
                           help="facet groups whose triangles may touch each other and themselves (self-contact), "
@@ -1049,9 +1058,11 @@ def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
                             f"{values['name']!r}")
     if kind in MESH_CONTACT_TYPES:
         return _surface_contact(where, kind, values, source)
-    anchor = "point" if kind == "plane" else "center"
+    anchor = "center" if kind == "sphere" else "point"
     if kind == "plane" and not any(values["normal"]):
         raise CaseFileError(f"{where}.normal: must not be zero, got {list(values['normal'])}")
+    if kind == "cylinder" and not any(values["axis"]):
+        raise CaseFileError(f"{where}.axis: must not be zero, got {list(values['axis'])}")
     for name in ("normal", "motion"):
         if name in values and len(values[name]) != len(values[anchor]):
             raise CaseFileError(
@@ -1066,6 +1077,7 @@ def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
         normal=values.get("normal"),
         center=values.get("center"),
         radius=values.get("radius"),
+        axis=values.get("axis"),
         dhat=values.get("dhat"),
         stiffness=values.get("stiffness"),
         motion=values.get("motion"),

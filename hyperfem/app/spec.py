@@ -55,7 +55,7 @@ SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
 FIBRE_TYPES = ("laplace", "constant", "file")
 REPRESENTATIONS = ("DG0", "P1", "quadrature")
 BC_TYPES = ("clamp", "displacement", "rotation")
-CONTACT_TYPES = ("plane", "sphere", "self", "pair", "tool", "tie")
+CONTACT_TYPES = ("plane", "sphere", "cylinder", "self", "pair", "tool", "tie")
 MESH_CONTACT_TYPES = ("self", "pair", "tool", "tie")
 """Contacts of boundary surfaces (triangles and edges) rather than of boundary nodes: ``boundaries``, 3D only."""
 LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
@@ -204,7 +204,8 @@ class ContactSpec:
     Attributes:
         key: Key path (``"contact[0]"``).
         type: One of :data:`CONTACT_TYPES` (``"plane"``: :class:`~hyperfem.contact.PlaneContact`,
-            ``"sphere"``: :class:`~hyperfem.contact.SphereContact`, ``"self"`` and ``"pair"``:
+            ``"sphere"``: :class:`~hyperfem.contact.SphereContact`, ``"cylinder"``:
+            :class:`~hyperfem.contact.CylinderContact`, ``"self"`` and ``"pair"``:
             :class:`~hyperfem.contact.SurfaceContact`, ``"tool"``: :class:`~hyperfem.contact.ToolContact`,
             ``"tie"``: :class:`~hyperfem.contact.TieContact`).
         boundary: Facet group whose nodes may touch (plane, sphere); ``None`` for the others.
@@ -224,7 +225,8 @@ class ContactSpec:
         motion: Translation of the obstacle at profile 1, or ``None`` (it stays).
         profile: Time profile of the motion, or ``None`` (linear).
         center: The sphere's centre (at profile 0); ``None`` for a plane.
-        radius: The sphere's radius; ``None`` for a plane.
+        radius: The sphere's or cylinder's radius; ``None`` for a plane.
+        axis: The cylinder's axis direction; ``None`` otherwise.
         friction: Coulomb coefficient (0: frictionless).
         friction_epsilon: Friction's slip length, or ``None`` (the library default).
     """
@@ -249,6 +251,7 @@ class ContactSpec:
     safety: float | None = None
     name: str | None = None
     tolerance: float | None = None
+    axis: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
