@@ -632,7 +632,7 @@ class NewtonSolver:
         predicted = admissible and self.predictor and moved and self._predict(carried)
         self._apply_dirichlet()
         refusal = self._start_refusal()
-        if not refusal and carried is not None and self.external:
+        if not refusal and self.external:  # a start that passes through a surface since the last converged state
             refusal = self.external.sweep_refusal()
         solved = not refusal
         reason, message = (self._run_snes(), "") if solved else (_DOMAIN, refusal)
