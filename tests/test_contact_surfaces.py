@@ -89,14 +89,23 @@ def _stacked_state(comm) -> tuple[float, float, float]:
 
 
 def test_two_blocks_one_rank_equals_two_ranks():
-    """Force, displacement norm and smallest gap of the patch test on 2 ranks equal 1 rank's to 1e-10."""
+    """Force and displacement norm of the patch test on 2 ranks equal 1 rank's to 1e-5, the smallest gap to 1 % of
+    d-hat.
+
+    Not to 1e-10: the frictionless barrier between non-matching facets has many equilibria a few 1e-6 apart (the
+    edge-edge pairs lock the faces laterally where they come to rest): on 1 rank, increments of 0.125, 0.25 and 0.5
+    end at forces of -0.10866105, -0.10866101 and -0.10866131, each converged to |r| < 1e-12, and round-off in the
+    Newton path (one rank or two) picks one of them. The tie (tests/test_contact_tie.py), whose equilibrium is
+    unique, and the plane, sphere and cylinder (tests/test_contact*.py) agree to 1e-10.
+    """
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
     pc_setup_seconds()
     one = _stacked_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
-    assert _stacked_state(comm) == pytest.approx(one, rel=1e-10)
+    two = _stacked_state(comm)
+    assert two[:2] == pytest.approx(one[:2], rel=1e-5) and two[2] == pytest.approx(one[2], abs=1e-2 * DHAT)
 
 
 @pytest.mark.serial  # the 2-rank path of the surface gathering is checked by the P1 patch test, 1 rank = 2 ranks
@@ -242,7 +251,11 @@ def test_tool_pushed_half_into_the_tissue_never_penetrates():
 
 
 def test_self_contact_of_one_group_equals_the_pair():
-    """One boundary group holding both facing faces (self-contact of a group) gives the pair's state to 1e-10."""
+    """One boundary group holding both facing faces (self-contact of a group) gives the pair's reaction to 1e-5.
+
+    (The same pairs, in another order: round-off may pick another of the equilibria a few 1e-6 apart,
+    ``test_two_blocks_one_rank_equals_two_ranks``.)
+    """
     delta = 0.2
     pair_problem, pair, _ = _stacked(delta=delta)
     stacked = hf.mesh.stacked_blocks_mesh(0.5, 0.34, GAP)
@@ -264,9 +277,10 @@ def test_self_contact_of_one_group_equals_the_pair():
     contact = SurfaceContact(["facing"], dhat=DHAT).bind(problem)
     solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
     hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
-    assert contact.surface.size == pair.surface.size and contact.active_count() == pair.active_count()
+    assert contact.surface.size == pair.surface.size
+    assert contact.active_count() == pytest.approx(pair.active_count(), rel=0.05)
     reaction = ReactionForce(pair_problem, "upper_top")()
-    assert ReactionForce(problem, "upper_top")() == pytest.approx(reaction, rel=1e-10, abs=1e-10 * abs(reaction[2]))
+    assert ReactionForce(problem, "upper_top")() == pytest.approx(reaction, rel=1e-5, abs=1e-5 * abs(reaction[2]))
 
 
 # -- friction on a triangulated tool --------------------------------------------------------------------------------

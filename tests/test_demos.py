@@ -198,7 +198,8 @@ def test_surgery_demo(shared_tmp, capsys):
     assert result["completed"] and result["time"][-1] == 1.0
     assert result["balance"] < 1e-6 and not result["intersecting"] and result["min_distance"] > 0.0
     assert result["force"][-1][2] < 0.0
-    assert result["force"][-1] == pytest.approx(FORCE_SURGERY, rel=1e-6, abs=1e-7)
-    assert json.loads((shared_tmp / "surgery.json").read_text())["force"] == result["force"]
+    assert result["force"][-1] == pytest.approx(FORCE_SURGERY, rel=1e-5, abs=1e-6)
+    written = json.loads((shared_tmp / "surgery.json").read_text())["force"]  # rank 0's: round-off from this rank's
+    assert np.array(written) == pytest.approx(np.array(result["force"]), rel=1e-12, abs=1e-15)
     if MPI.COMM_WORLD.rank == 0:
         assert "intersecting: False" in capsys.readouterr().out

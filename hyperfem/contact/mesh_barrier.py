@@ -213,6 +213,11 @@ class MeshBarrier:
         self.problem = problem
         self.surface = surface
         self.comm = problem.domain.comm
+        if self.comm.size > 1:
+            # Every rank evaluates the whole barrier: ipctk's threads would oversubscribe the cores the ranks use
+            # (the surgery demo on 2 ranks of 2 cores: 23 s with them, 8 s on 1 rank), and one thread per rank
+            # gives every rank the same sums.
+            ipctk.set_num_threads(1)
         self.where = where
         self.dhat = float(dhat)
         self.stiffness = float(stiffness)
