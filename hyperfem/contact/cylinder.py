@@ -27,15 +27,10 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
-from hyperfem.contact.ccd import CCD_SAFETY, SphereCollisionFilter
-from hyperfem.contact.defaults import default_dhat, default_stiffness
-from hyperfem.contact.nodal import NodalBarrier
-from hyperfem.contact.nodes import boundary_nodes
+from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.obstacles import Cylinder
 from hyperfem.contact.settings import check_contact_settings
-from hyperfem.contact.sphere import project_psd
+from hyperfem.contact.sphere import SphereBarrier
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
@@ -110,8 +105,10 @@ class CylinderContact:
         return CylinderBarrier(self, problem)
 
 
-class CylinderBarrier(NodalBarrier):
+class CylinderBarrier(SphereBarrier):
     r"""The barrier term :math:`\kappa B(u)` of a :class:`CylinderContact` on a problem (module docstring).
+
+    The sphere's barrier with offsets, normals and Hessian in the plane normal to the axis.
 
     Attributes:
         dhat: :math:`\hat d`.
@@ -122,62 +119,12 @@ class CylinderBarrier(NodalBarrier):
     """
 
     behind = "on or inside the cylinder"
+    shape = "cylinder"
 
     def __init__(self, contact: CylinderContact, problem: SolidProblem):
-        self.contact = contact
-        self.where = f"CylinderContact on {contact.boundary!r}"
-        self.problem = problem
-        self.comm = problem.domain.comm
-        self.obstacle = contact.obstacle
         if problem.domain.gdim != 3:
-            raise ParameterError(f"{self.where}: a cylinder needs a 3D mesh, got {problem.domain.gdim}D")
-        self.radius = float(contact.radius)
-        self.projector = self.obstacle.projector
-        self.nodes = boundary_nodes(problem, contact.boundary)
-        self.dhat = contact.dhat if contact.dhat is not None else default_dhat(problem, contact.boundary)
-        self.update(problem.time)
-        self._check_start("cylinder")
-        mean = np.full(3, 1.0 / np.sqrt(3.0))
-        self.stiffness = (
-            contact.stiffness if contact.stiffness is not None else default_stiffness(problem, self.nodes, mean)
-        )
-        self._init_friction(contact)
-        self.step_filter = SphereCollisionFilter(
-            self.nodes.dofs, self.nodes.X, lambda: self._center, self.radius, contact.safety, self.projector
-        )
-
-    # -- the ExternalEnergy contract ----------------------------------------
-    def update(self, t: float) -> None:
-        """Move the cylinder to time (load factor) ``t``."""
-        self.time = float(t)
-        self._center = self.obstacle.origin(t)
-        self._refresh_lag()
-
-    def _offsets(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:math:`q_a = P(x_a - c)` and :math:`r_a = |q_a|` of the owned nodes."""
-        q = (self.nodes.positions(u) - self._center) @ self.projector
-        return q, np.linalg.norm(q, axis=1)
-
-    def distances(self, u: np.ndarray) -> np.ndarray:
-        """Signed distances :math:`d_a = |P(x_a - c)| - R` of the owned nodes."""
-        return self._offsets(u)[1] - self.radius
-
-    def normals(self, u: np.ndarray) -> np.ndarray:
-        """The outward unit vectors :math:`n_a = q_a / r_a` (normal to the axis)."""
-        q, r = self._offsets(u)
-        return q / r[:, None]
-
-    def _barrier_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r""":math:`\kappa b'(d_a)\,n_a` at the active nodes: ``(dofs, values)``."""
-        rows, first, _ = self._active(u)
-        return self.nodes.dofs[rows], self.stiffness * first[:, None] * self.normals(u)[rows]
-
-    def _barrier_hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        r"""The blocks :math:`\kappa(b'' n n^T + b'(P - n n^T)/r)` at the active nodes, PSD-projected by default."""
-        rows, first, second = self._active(u)
-        q, r = self._offsets(u)
-        n = q[rows] / r[rows, None]
-        outer = np.einsum("mi,mj->mij", n, n)
-        tangential = (self.projector[None, :, :] - outer) / r[rows, None, None]
-        blocks = self.stiffness * (second[:, None, None] * outer + first[:, None, None] * tangential)
-        return self.nodes.dofs[rows], project_psd(blocks) if project else blocks
+            raise ParameterError(
+                f"CylinderContact on {contact.boundary!r}: a cylinder needs a 3D mesh, got {problem.domain.gdim}D"
+            )
+        self.projector = contact.obstacle.projector
+        super().__init__(contact, problem)  # type: ignore[arg-type, unused-ignore]  # the sphere's fields: boundary, radius, ...

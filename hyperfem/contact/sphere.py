@@ -149,28 +149,31 @@ class SphereBarrier(NodalBarrier):
     """
 
     behind = "on or inside the sphere"
+    shape = "sphere"
+    projector: np.ndarray | None = None
+    """Offsets and steps are projected with it (a cylinder's :math:`I - a a^T`; ``None``: a ball)."""
 
     def __init__(self, contact: SphereContact, problem: SolidProblem):
         self.contact = contact
-        self.where = f"SphereContact on {contact.boundary!r}"
+        self.where = f"{type(contact).__name__} on {contact.boundary!r}"
         self.problem = problem
         self.comm = problem.domain.comm
         self.obstacle = contact.obstacle
         gdim = problem.domain.gdim
         if self.obstacle.dim != gdim:
-            raise ParameterError(f"{self.where}: the center has {self.obstacle.dim} components, the mesh {gdim}")
+            raise ParameterError(f"{self.where}: the {self.shape} has {self.obstacle.dim} components, the mesh {gdim}")
         self.radius = float(contact.radius)
         self.nodes = boundary_nodes(problem, contact.boundary)
         self.dhat = contact.dhat if contact.dhat is not None else default_dhat(problem, contact.boundary)
         self.update(problem.time)
-        self._check_start("sphere")
+        self._check_start(self.shape)
         mean = np.full(gdim, 1.0 / np.sqrt(gdim))  # n^T K n averaged over the directions: the mean diagonal
         self.stiffness = (
             contact.stiffness if contact.stiffness is not None else default_stiffness(problem, self.nodes, mean)
         )
         self._init_friction(contact)
         self.step_filter = SphereCollisionFilter(
-            self.nodes.dofs, self.nodes.X, lambda: self._center, self.radius, contact.safety
+            self.nodes.dofs, self.nodes.X, lambda: self._center, self.radius, contact.safety, self.projector
         )
 
     # -- the ExternalEnergy contract ----------------------------------------
@@ -181,8 +184,10 @@ class SphereBarrier(NodalBarrier):
         self._refresh_lag()
 
     def _offsets(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:math:`x_a - c` and :math:`r_a = |x_a - c|` of the owned nodes."""
+        """:math:`q_a = x_a - c` (projected with :attr:`projector`, if any) and :math:`r_a = |q_a|`, owned nodes."""
         q = self.nodes.positions(u) - self._center
+        if self.projector is not None:
+            q = q @ self.projector
         return q, np.linalg.norm(q, axis=1)
 
     def distances(self, u: np.ndarray) -> np.ndarray:
@@ -210,7 +215,8 @@ class SphereBarrier(NodalBarrier):
         q, r = self._offsets(u)
         n = q[rows] / r[rows, None]
         outer = np.einsum("mi,mj->mij", n, n)
-        tangential = (np.eye(n.shape[1])[None, :, :] - outer) / r[rows, None, None]
+        plane = np.eye(n.shape[1]) if self.projector is None else self.projector  # a cylinder: I - a a^T
+        tangential = (plane[None, :, :] - outer) / r[rows, None, None]
         blocks = self.stiffness * (second[:, None, None] * outer + first[:, None, None] * tangential)
         return self.nodes.dofs[rows], project_psd(blocks) if project else blocks
 
