@@ -25,7 +25,15 @@ from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
 from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
-from hyperfem.contact import CylinderContact, PlaneContact, SphereContact, SurfaceContact, TieContact, ToolContact
+from hyperfem.contact import (
+    ContactField,
+    CylinderContact,
+    PlaneContact,
+    SphereContact,
+    SurfaceContact,
+    TieContact,
+    ToolContact,
+)
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
@@ -588,6 +596,9 @@ def _outputs(case: Case, materials: _Materials) -> Statement:
         items.append(("output.convergence", Call.of(ConvergenceLog, Join(out, f"{name}_convergence.jsonl"))))
     if o.fields:
         items.append(("output.fields", _field_output(case, materials)))
+        if case.contacts:  # the contacts' nodal forces and tractions beside the fields
+            barriers = [Ref(variable) for variable in _contact_names(case)]
+            items.append(("contact", Call.of(ContactField, Join(out, f"{name}_contact.bp"), barriers)))
     if o.checkpoint_every is not None:
         kw = {"every": o.checkpoint_every}
         if o.checkpoint_keep is not None:

@@ -21,6 +21,8 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`).
 * Gluing: :class:`TieContact` (two groups of non-matching meshes held
   together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).
+* :class:`ContactField` (:mod:`~hyperfem.contact.field`): the nodal contact
+  force and traction of every contact as a VTX series for ParaView.
 * :mod:`~hyperfem.contact.barrier` (the nodal barrier function),
   :mod:`~hyperfem.contact.defaults` (:math:`\hat d`, :math:`\kappa`),
   :mod:`~hyperfem.contact.nodes` (contact nodes), :mod:`~hyperfem.contact.settings`
@@ -44,6 +46,7 @@ from hyperfem.contact.ccd import (
     sphere_step_fraction,
 )
 from hyperfem.contact.cylinder import CylinderBarrier, CylinderContact
+from hyperfem.contact.field import ContactField
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, default_dhat, default_stiffness
 from hyperfem.contact.nodes import BoundaryNodes, boundary_nodes, facet_size
 from hyperfem.contact.nodal import NodalBarrier
@@ -63,6 +66,7 @@ __all__ = [
     "STIFFNESS_FACTOR",
     "Ball",
     "BoundaryNodes",
+    "ContactField",
     "ContactSurface",
     "Cylinder",
     "CylinderBarrier",
