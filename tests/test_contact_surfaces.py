@@ -375,3 +375,47 @@ def test_block_dropped_fast_on_a_tool_plate_never_passes_through():
     assert all(b <= a * (1 + 1e-9) for a, b in zip(total, total[1:], strict=False))
     velocity = problem.v.x.array.reshape(-1, 3)[:, 2]
     assert comm.allreduce(float(velocity.mean()) if len(velocity) else 0.0, op=MPI.SUM) > 0.0  # moving up again
+
+
+# -- checkpoint and restart ----------------------------------------------------------------------------------------
+
+
+def _dragged_on_rough_tool(comm, folder, stop_after=None):
+    """The cube pressed on the rough plate and dragged 0.2 along x (friction MU), in a Simulation with checkpoints."""
+    from hyperfem.loading import Ramp
+    from hyperfem.simulation import Checkpoint, Recorder, Simulation
+    from hyperfem.simulation.outputs import Output
+
+    class StopAfter(Output):
+        def write(self, sim, step) -> None:
+            if stop_after is not None and step is not None and step.step >= stop_after:
+                raise KeyboardInterrupt(f"interrupted after step {step.step}")
+
+    bcs = [
+        hf.PrescribedDisplacement("top", [-0.05], components=[2], profile=Ramp(0.5)),
+        hf.PrescribedDisplacement("top", [0.2], components=[0], profile=Ramp(1.0, t0=0.5)),
+    ]
+    material = lambda F: hf.materials.neo_hookean(F, PARAMS)  # noqa: E731
+    problem = hf.HyperelasticProblem(_cube(comm, 2), material, bcs=bcs)
+    tool = ToolContact.from_arrays(["bottom"], ROUGH_PLATE, ROUGH_TRIANGLES, dhat=DHAT, friction=MU).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[tool], check_rigid_motion=False)
+    outputs = [Recorder(tool), StopAfter(), Checkpoint(folder / "ckpt", every=1)]
+    return Simulation(problem, solver, hf.StepPolicy(increment=0.125), outputs, name="drag"), tool
+
+
+def test_restart_with_friction_reproduces_the_uninterrupted_drag(shared_tmp):
+    """Interrupted after 5 of 8 steps (mid-drag) and restarted: the friction lag is taken again at the restart state
+    (ExternalTerms.remember), so the rows and the final friction force equal the uninterrupted run's to 1e-10."""
+    comm = MPI.COMM_WORLD
+    full, tool = _dragged_on_rough_tool(comm, shared_tmp / "full")
+    reference = full.run()
+    cut, _ = _dragged_on_rough_tool(comm, shared_tmp / "cut", stop_after=5)
+    with pytest.raises(KeyboardInterrupt):
+        cut.run()
+    resumed, again = _dragged_on_rough_tool(comm, shared_tmp / "cut")
+    summary = resumed.run(restart=shared_tmp / "cut" / "ckpt")
+    assert summary["completed"] and summary["steps"] == reference["steps"]
+    last, expected = summary["rows"][-1], reference["rows"][-1]
+    assert last["tool_friction_force"] == pytest.approx(expected["tool_friction_force"], rel=1e-10, abs=1e-14)
+    assert last["tool_force"] == pytest.approx(expected["tool_force"], rel=1e-10, abs=1e-14)
+    assert -expected["tool_friction_force"][0] > 0.5 * MU * expected["tool_force"][2]  # it was sliding
