@@ -81,6 +81,7 @@ demos: bootstrap
 	$(PY) demos/realtime.py --steps 90
 	$(PY) demos/contact.py
 	$(PY) demos/surgery.py
+	$(PY) demos/two_beams.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)

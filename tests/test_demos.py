@@ -203,3 +203,19 @@ def test_surgery_demo(shared_tmp, capsys):
     assert np.array(written) == pytest.approx(np.array(result["force"]), rel=1e-12, abs=1e-15)
     if MPI.COMM_WORLD.rank == 0:
         assert "intersecting: False" in capsys.readouterr().out
+
+
+FORCE_TWO_BEAMS = [-1.7791829204e-05, 1.5272480346e-04, 5.088108503e-07]  # default run, 1 rank (= 2 ranks to 1e-16)
+
+
+def test_two_beams_demo(shared_tmp, capsys):
+    """Two bodies of one mesh (issue 19): the second beam's clamp reaction balances the contact force, no
+    intersection, contact from load factor 0.24 (gap / push = 0.25, less d-hat); the regression force."""
+    pytest.importorskip("ipctk")
+    result = load_demo("two_beams").main(["--output", str(shared_tmp)])
+    assert result["completed"] and result["time"][-1] == 1.0 and not result["intersecting"]
+    assert result["balance"] < 1e-5 and result["min_distance"] > 0.0
+    assert 0.2 < result["first_contact_at"] < 0.25
+    assert result["force_on_second"][-1] == pytest.approx(FORCE_TWO_BEAMS, rel=1e-5, abs=1e-8)
+    if MPI.COMM_WORLD.rank == 0:
+        assert "intersecting: False" in capsys.readouterr().out

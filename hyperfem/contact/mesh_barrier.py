@@ -129,6 +129,10 @@ class RigidSurface:
         return self.points + self.offset(t)
 
 
+SWEEP_RESCALING = 0.999
+"""The sweep check's CCD rescaling: a move is refused where two primitives come within 0.1 % of their distance."""
+
+
 def _f(a: np.ndarray) -> np.ndarray:
     """An F-ordered float64 copy (what the ``ipctk`` bindings take without converting)."""
     return np.asfortranarray(a, dtype=float)
@@ -233,6 +237,8 @@ class MeshBarrier:
             self.mesh.can_collide = ipctk.make_static_obstacle_filter(n)  # no tool–tool pairs
         self.potential = ipctk.BarrierPotential(self.dhat, self.stiffness)
         self._ccd = ipctk.AdditiveCCD(conservative_rescaling=float(safety))
+        # The sweep check of a start state looks for primitives that meet on the way, not for ones that come close.
+        self._sweep_ccd = ipctk.AdditiveCCD(conservative_rescaling=SWEEP_RESCALING)
         # The global dof of every collision-mesh dof (-1: a tool's) and whether it is a Dirichlet dof.
         tool_dofs = 0 if tool is None else 3 * len(tool.points)
         self._global = np.concatenate([surface.global_dofs.ravel(), np.full(tool_dofs, -1, dtype=np.int64)])
@@ -420,19 +426,58 @@ class MeshBarrier:
         rows = np.flatnonzero(overrun[self.surface.rows])
         return self.surface.dofs[rows], np.tile(shift, (len(rows), 1))
 
+    def carried_by_supports(self, u: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""This rank's free surface nodes pushed by prescribed ones: ``(dofs, increments)``.
+
+        A node with free components that is in an active pair (closer than
+        :math:`\hat d`) with nodes whose components are prescribed (a
+        Dirichlet-driven surface, e.g. a beam's end pushed into another body)
+        gets the mean increment :math:`g - u` of those components: it moves
+        with the surface that pushes it, instead of being overrun by it.
+
+        Args:
+            u: The unknown's local array at the anchor.
+            target: The same with the prescribed values of the new time set.
+        """
+        V = self.vertices(u)
+        collisions = self._collisions(V)
+        n = self.surface.size
+        increment = (self.surface.displacements(target) - self.surface.displacements(u)) * self.surface.constrained
+        moving = np.abs(increment).max(axis=1) > 0.0
+        if not len(collisions) or not np.any(moving):
+            return self.surface.dofs[:0], np.zeros((0, 3))
+        total = np.zeros((n, 3))
+        count = np.zeros(n)
+        for k in range(len(collisions)):
+            ids = [int(v) for v in collisions[k].vertex_ids(self.mesh.edges, self.mesh.faces) if 0 <= v < n]
+            pushers = [v for v in ids if moving[v]]
+            if not pushers:
+                continue
+            push = increment[pushers].mean(axis=0)
+            for v in ids:
+                if not moving[v]:
+                    total[v] += push
+                    count[v] += 1
+        carried = count > 0
+        mine = carried[self.surface.rows]
+        rows = self.surface.rows[mine]
+        return self.surface.dofs[mine], total[rows] / count[rows, None]
+
     def sweep_fraction(self, u_from: np.ndarray, t_from: float, u: np.ndarray) -> float:
         """The collision-free fraction of the joint move of body (``u_from`` to ``u``) and tool (``t_from`` to now).
 
-        ``ipctk``'s continuous collision detection of both linear trajectories
-        (1: no primitive comes closer than the safety allows on the way).
+        ``ipctk``'s continuous collision detection of both linear trajectories:
+        1 where no two primitives meet on the way (come within 0.1 % of their
+        distance, :data:`SWEEP_RESCALING`), else the fraction before they do.
         """
         V0 = self.surface.positions(u_from)
         V1 = self.surface.positions(u)
         if self.tool is not None:
             V0 = np.vstack([V0, self.tool.vertices(t_from)])
             V1 = np.vstack([V1, self.tool.vertices(self.time)])
-        return float(self.ipctk.compute_collision_free_stepsize(self.mesh, _f(V0), _f(V1), 0.0, self.ipctk.HashGrid(),
-                                                                self._ccd))
+        fraction = float(self.ipctk.compute_collision_free_stepsize(self.mesh, _f(V0), _f(V1), 0.0,
+                                                                    self.ipctk.HashGrid(), self._sweep_ccd))
+        return 1.0 if fraction >= SWEEP_RESCALING else fraction
 
     def admissible(self, u: np.ndarray) -> str:
         """``""``, or that the surfaces touch or intersect at the state ``u`` (the same answer on every rank)."""

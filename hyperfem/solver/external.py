@@ -297,6 +297,33 @@ class ExternalTerms:
             return None
         return local_rows.astype(PETSc.IntType), local_values.astype(float)
 
+    def carry_by_supports(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Put the state back at the anchor and give the increments of free nodes that prescribed ones push.
+
+        For the energies with ``carried_by_supports(u, target)`` (mesh contact):
+        a Dirichlet-driven surface in contact with another body carries the
+        nodes it touches, as an obstacle does (:meth:`carry`); ``None`` where
+        none is carried on any rank (collective).
+        """
+        self.u.x.array[:] = self._anchor
+        target = self._anchor.copy()
+        for bc in self.problem.bcs:
+            bc.set(target)
+        rows, values = [], []
+        for energy in self.energies:
+            carried = getattr(energy, "carried_by_supports", None)
+            if carried is None:
+                continue
+            dofs, increments = carried(self._anchor, target)
+            free = ~self._constrained[dofs]
+            rows.append(self._global[dofs][free])
+            values.append(increments[free])
+        local_rows = np.concatenate(rows) if rows else np.zeros(0, dtype=self._global.dtype)
+        local_values = np.concatenate(values) if values else np.zeros(0)
+        if not self.comm.allreduce(len(local_rows), op=MPI.SUM):
+            return None
+        return local_rows.astype(PETSc.IntType), local_values.astype(float)
+
     def sweep_refusal(self) -> str:
         """Why the joint move from the anchor (obstacles at the anchor time) to now is not collision-free, or ``""``.
 
@@ -311,8 +338,8 @@ class ExternalTerms:
             fraction = sweep(self._anchor, self.anchor_time, self.u.x.array)
             if fraction < 1.0:
                 return (
-                    f"{getattr(energy, 'where', 'contact')}: the tool's move from t = {self.anchor_time:g} to "
-                    f"t = {self.problem.time:g} sweeps through the body (collision-free fraction {fraction:.3g})"
+                    f"{getattr(energy, 'where', 'contact')}: the move from t = {self.anchor_time:g} to "
+                    f"t = {self.problem.time:g} sweeps through a surface (collision-free fraction {fraction:.3g})"
                 )
         return ""
 

@@ -634,6 +634,13 @@ class NewtonSolver:
         refusal = self._start_refusal()
         if not refusal and self.external:  # a start that passes through a surface since the last converged state
             refusal = self.external.sweep_refusal()
+        if refusal and carried is None and self.external and self.predictor:
+            # A prescribed surface pushed into a body it touches: carry the touched nodes with it, predict again.
+            pushed = self.external.carry_by_supports()
+            if pushed is not None:
+                predicted = self._predict(pushed) or predicted
+                self._apply_dirichlet()
+                refusal = self._start_refusal() or self.external.sweep_refusal()
         solved = not refusal
         reason, message = (self._run_snes(), "") if solved else (_DOMAIN, refusal)
         self.problem.u.x.scatter_forward()
