@@ -181,7 +181,8 @@ def test_bad_tool_input_is_one_line(tmp_path):
     with pytest.raises(ParameterError, match="intersect at the start"):
         ToolContact.from_arrays(["bottom", "top", "x0", "y0"], inside, PLATE_TRIANGLES).bind(problem)
     touching = PLATE + np.array([0.0, 0.0, DHAT / 2])  # the plane z = 0 of the bottom face
-    with pytest.raises(ParameterError, match=r"start in contact: the node at \(.*\) is at distance 0"):
+    # (Touching, or crossing where the mesh's coordinates carry round-off: z = -5.7e-17 on Debian's DOLFINx.)
+    with pytest.raises(ParameterError, match=r"start in contact: the node at \(.*\) is at distance 0|intersect at"):
         ToolContact.from_arrays(["bottom"], touching, PLATE_TRIANGLES).bind(problem)
     with pytest.raises(ParameterError, match="named twice"):
         SurfaceContact(["bottom", "bottom"])
