@@ -420,3 +420,15 @@ def test_restart_with_friction_reproduces_the_uninterrupted_drag(shared_tmp):
     assert last["tool_friction_force"] == pytest.approx(expected["tool_friction_force"], rel=1e-10, abs=1e-14)
     assert last["tool_force"] == pytest.approx(expected["tool_force"], rel=1e-10, abs=1e-14)
     assert -expected["tool_friction_force"][0] > 0.5 * MU * expected["tool_force"][2]  # it was sliding
+
+
+def test_dhat_wider_than_the_body_is_refused():
+    """A barrier width not below the body's smallest side (a width in mm for a mesh in m): one line, every contact."""
+    problem = _pressed_cube()
+    for contact in (
+        PlaneContact("bottom", point=(0.0, 0.0, -0.5), normal=(0.0, 0.0, 1.0), dhat=2.0),
+        ToolContact.from_arrays(["bottom"], PLATE, PLATE_TRIANGLES, dhat=1.0),
+    ):
+        with pytest.raises(ParameterError, match=r"dhat = [12] is not smaller than the body \(its bounding box's "
+                           r"smallest side is 1\)"):
+            contact.bind(problem)

@@ -85,6 +85,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from hyperfem.contact.barrier import require_ipctk
+from hyperfem.contact.settings import check_dhat_fits
 from hyperfem.contact.surface import ContactSurface
 from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
@@ -224,6 +225,7 @@ class MeshBarrier:
             ipctk.set_num_threads(1)
         self.where = where
         self.dhat = float(dhat)
+        check_dhat_fits(problem, self.dhat, where)
         self.stiffness = float(stiffness)
         self.tool = tool
         n = surface.size

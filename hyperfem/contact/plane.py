@@ -48,7 +48,7 @@ from hyperfem.contact.ccd import CCD_SAFETY, PlaneCollisionFilter
 from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
-from hyperfem.contact.settings import check_contact_settings
+from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
 from hyperfem.contact.obstacles import HalfSpace, check_plane
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
@@ -159,6 +159,7 @@ class PlaneBarrier(NodalBarrier):
         self.normal = self.obstacle.unit_normal
         self.nodes = boundary_nodes(problem, contact.boundary)
         self.dhat = contact.dhat if contact.dhat is not None else default_dhat(problem, contact.boundary)
+        check_dhat_fits(problem, self.dhat, self.where)
         self.update(problem.time)
         self._check_start("plane")
         self.stiffness = (

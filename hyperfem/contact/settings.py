@@ -12,10 +12,13 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from hyperfem.contact.barrier import require_ipctk
+from mpi4py import MPI
+
 from hyperfem.errors import ParameterError
+from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_callable, check_name, check_positive
 
-__all__ = ["check_boundaries", "check_contact_settings"]
+__all__ = ["check_boundaries", "check_contact_settings", "check_dhat_fits"]
 
 
 def check_contact_settings(
@@ -62,3 +65,26 @@ def check_boundaries(boundaries: str | Sequence[str], owner: str) -> tuple[tuple
     if len(set(names)) != len(names):
         raise ParameterError(f"{where}: a boundary is named twice")
     return tuple(names), where
+
+
+def check_dhat_fits(problem: SolidProblem, dhat: float, where: str) -> None:
+    r"""Refuse a barrier width :math:`\hat d` not below the body's smallest bounding-box side (collective).
+
+    A barrier that reaches across the whole body acts everywhere at once; it is
+    a wrong unit or a typo (a width in mm for a mesh in m).
+
+    Raises:
+        ParameterError: :math:`\hat d \ge` the smallest side (one line, every rank).
+    """
+    x = problem.domain.mesh.geometry.x
+    gdim, comm = problem.domain.gdim, problem.domain.comm
+    local = np.full(2 * gdim, -np.inf)
+    if len(x):
+        local = np.concatenate([-x[:, :gdim].min(axis=0), x[:, :gdim].max(axis=0)])
+    bounds = np.empty_like(local)
+    comm.Allreduce(local, bounds, op=MPI.MAX)
+    side = float(np.min(bounds[gdim:] + bounds[:gdim]))
+    if not dhat < side:
+        raise ParameterError(
+            f"{where}: dhat = {dhat:g} is not smaller than the body (its bounding box's smallest side is {side:g})"
+        )

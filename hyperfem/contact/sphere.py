@@ -46,7 +46,7 @@ from hyperfem.contact.ccd import CCD_SAFETY, SphereCollisionFilter
 from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
-from hyperfem.contact.settings import check_contact_settings
+from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
 from hyperfem.contact.obstacles import Ball, check_ball
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
@@ -165,6 +165,7 @@ class SphereBarrier(NodalBarrier):
         self.radius = float(contact.radius)
         self.nodes = boundary_nodes(problem, contact.boundary)
         self.dhat = contact.dhat if contact.dhat is not None else default_dhat(problem, contact.boundary)
+        check_dhat_fits(problem, self.dhat, self.where)
         self.update(problem.time)
         self._check_start(self.shape)
         mean = np.full(gdim, 1.0 / np.sqrt(gdim))  # n^T K n averaged over the directions: the mean diagonal
