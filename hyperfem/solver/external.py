@@ -282,20 +282,7 @@ class ExternalTerms:
             at its own time (collective).
         """
         self.u.x.array[:] = self._anchor
-        rows, values = [], []
-        for energy in self.energies:
-            carried = getattr(energy, "carried", None)
-            if carried is None:
-                continue
-            dofs, increments = carried(self._anchor, self.anchor_time)
-            free = ~self._constrained[dofs]
-            rows.append(self._global[dofs][free])
-            values.append(increments[free])
-        local_rows = np.concatenate(rows) if rows else np.zeros(0, dtype=self._global.dtype)
-        local_values = np.concatenate(values) if values else np.zeros(0)
-        if not self.comm.allreduce(len(local_rows), op=MPI.SUM):
-            return None
-        return local_rows.astype(PETSc.IntType), local_values.astype(float)
+        return self._carried("carried", self._anchor, self.anchor_time)
 
     def carry_by_supports(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Put the state back at the anchor and give the increments of free nodes that prescribed ones push.
@@ -309,12 +296,16 @@ class ExternalTerms:
         target = self._anchor.copy()
         for bc in self.problem.bcs:
             bc.set(target)
+        return self._carried("carried_by_supports", self._anchor, target)
+
+    def _carried(self, method: str, *args: object) -> tuple[np.ndarray, np.ndarray] | None:
+        """The energies' ``method(*args)`` increments: global dofs and values, Dirichlet dofs left out (collective)."""
         rows, values = [], []
         for energy in self.energies:
-            carried = getattr(energy, "carried_by_supports", None)
+            carried = getattr(energy, method, None)
             if carried is None:
                 continue
-            dofs, increments = carried(self._anchor, target)
+            dofs, increments = carried(*args)
             free = ~self._constrained[dofs]
             rows.append(self._global[dofs][free])
             values.append(increments[free])
