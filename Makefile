@@ -82,6 +82,7 @@ demos: bootstrap
 	$(PY) demos/contact.py
 	$(PY) demos/surgery.py
 	$(PY) demos/two_beams.py
+	$(PY) demos/glued_bar.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
