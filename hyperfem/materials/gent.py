@@ -18,23 +18,26 @@ no value. Two behaviours, chosen by :attr:`GentParameters.lock_fraction`:
   only the energy would be NaN: its derivative :math:`1/(1 - x)` is finite and
   negative beyond the lock, so a residual could vanish at a spurious state there.
   A pure UFL expression cannot raise, so the refusal is
-  the solver's: a state beyond the lock has a non-finite energy and residual,
-  which never passes a convergence test (a failed step, cut back by the
-  stepper), and a solve that starts there raises
-  :class:`~hyperfem.errors.ParameterError` ("residual is NaN/inf at the start").
+  the solver's: a state beyond the lock has a non-finite energy and residual
+  and never passes a convergence test, and a solve whose start lies beyond it
+  raises :class:`~hyperfem.errors.ParameterError` naming the stored energy (a
+  unit cube with :math:`J_m = 0.3` pulled to stretch 2 in steps of 0.05 stopped
+  so at load factor 0.6: that step's boundary increment, carried into the body
+  by the predictor, crossed the lock).
 * ``lock_fraction = f`` in (0, 1): for :math:`x \ge f` the logarithm
   :math:`-\ln(1 - x)` is continued by its second-order Taylor polynomial at
   :math:`x = f`, so the energy is finite, convex in :math:`\bar I_1` and
   :math:`C^2` everywhere, and equals the exact law wherever :math:`x < f`. The
   stiffness beyond :math:`f J_m` is then that of the lock's onset, not infinite:
   use it to let Newton iterates pass through over-stretched states, and check the
-  converged state has :math:`x < f`.
+  converged state has :math:`x < f` (the same cube with ``lock_fraction=0.9``
+  reached stretch 2, far beyond the lock).
 
 The first Piola–Kirchhoff stress (:func:`gent_stress`, verification only) is
 
 .. math::
     P = 2\psi_1 J^{-2/3}\left(F - \tfrac13\operatorname{tr}C\,F^{-T}\right) + J U'(J) F^{-T},\qquad
-    \psi_1 = \frac{\mu}{2}\,\frac{1}{1 - x}.
+    \psi_1 = \frac{\mu}{2}\,\frac{1}{1 - x}\quad(\text{beyond } f\text{: the derivative of the continuation}).
 """
 
 from __future__ import annotations
