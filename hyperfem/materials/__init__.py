@@ -8,6 +8,9 @@ Laws that need the polar rotation of :math:`F` (fixed-corotated, ARAP,
 corotational linear) are callable objects holding it in quadrature fields
 (:mod:`~hyperfem.materials.polar`); :mod:`~hyperfem.materials.invertibility`
 says which energies tolerate inverted elements.
+
+The fibre-reinforced laws (muscle, Holzapfel–Gasser–Ogden, Weiss, Fung orthotropic)
+take their reference directions after the deformation gradient: ``psi(F, a0, ..., params)``.
 """
 
 from hyperfem.materials.linear_elastic import linear_elastic, linear_elastic_stress
@@ -119,4 +122,76 @@ __all__ += [
     "stable_neo_hookean",
     "stable_neo_hookean_stress",
     "with_parameters",
+]
+
+from hyperfem.materials.arruda_boyce import (  # noqa: E402
+    ArrudaBoyceParameters,
+    arruda_boyce,
+    arruda_boyce_isochoric,
+    arruda_boyce_stress,
+)
+from hyperfem.materials.fung import (  # noqa: E402
+    FungOrthotropicParameters,
+    fung_orthotropic,
+    fung_orthotropic_isochoric,
+    fung_orthotropic_stress,
+)
+from hyperfem.materials.gent import GentParameters, gent, gent_isochoric, gent_stress  # noqa: E402
+from hyperfem.materials.holzapfel_gasser_ogden import (  # noqa: E402
+    HolzapfelGasserOgdenParameters,
+    holzapfel_gasser_ogden,
+    holzapfel_gasser_ogden_isochoric,
+    holzapfel_gasser_ogden_stress,
+)
+from hyperfem.materials.veronda_westmann import (  # noqa: E402
+    VerondaWestmannParameters,
+    veronda_westmann,
+    veronda_westmann_isochoric,
+    veronda_westmann_stress,
+)
+from hyperfem.materials.weiss import WeissParameters, weiss, weiss_isochoric, weiss_stress  # noqa: E402
+from hyperfem.materials.yeoh import (  # noqa: E402
+    ReducedPolynomialParameters,
+    YeohParameters,
+    reduced_polynomial,
+    reduced_polynomial_isochoric,
+    reduced_polynomial_stress,
+    yeoh,
+    yeoh_isochoric,
+    yeoh_stress,
+)
+
+__all__ += [
+    "ArrudaBoyceParameters",
+    "FungOrthotropicParameters",
+    "GentParameters",
+    "HolzapfelGasserOgdenParameters",
+    "ReducedPolynomialParameters",
+    "VerondaWestmannParameters",
+    "WeissParameters",
+    "YeohParameters",
+    "arruda_boyce",
+    "arruda_boyce_isochoric",
+    "arruda_boyce_stress",
+    "fung_orthotropic",
+    "fung_orthotropic_isochoric",
+    "fung_orthotropic_stress",
+    "gent",
+    "gent_isochoric",
+    "gent_stress",
+    "holzapfel_gasser_ogden",
+    "holzapfel_gasser_ogden_isochoric",
+    "holzapfel_gasser_ogden_stress",
+    "reduced_polynomial",
+    "reduced_polynomial_isochoric",
+    "reduced_polynomial_stress",
+    "veronda_westmann",
+    "veronda_westmann_isochoric",
+    "veronda_westmann_stress",
+    "weiss",
+    "weiss_isochoric",
+    "weiss_stress",
+    "yeoh",
+    "yeoh_isochoric",
+    "yeoh_stress",
 ]
