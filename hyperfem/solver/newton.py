@@ -94,6 +94,7 @@ from hyperfem.solver.step_filter import DEFAULT_VOLUME_FRACTION
 __all__ = [
     "DEFAULT_MIN_JACOBIAN",
     "DEFAULT_PETSC_OPTIONS",
+    "DIRECT_FALLBACK_LIMIT",
     "ROUNDOFF_FACTOR",
     "STEP_FILTERS",
     "STEP_SAFETY",
@@ -103,6 +104,17 @@ __all__ = [
 ]
 
 _DOMAIN = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
+_LINEAR = int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE)
+
+DIRECT_FALLBACK_LIMIT = 400_000
+"""Unknowns up to which a Newton direction whose Krylov solve failed is solved again with MUMPS.
+
+A tangent that is indefinite (an exact contact Hessian, a strongly
+compressed element) stops CG (``KSP_DIVERGED_INDEFINITE_MAT``/``_PC``); one
+LU solve of that tangent is cheaper than the cut-backs the failure would
+cost. Above this size the factorisation's memory (several GB for P1 at
+4·10^5 unknowns) is not risked: the solve fails as before."""
+
 _T = TypeVar("_T")
 _SolverRef = Callable[[], "NewtonSolver"]
 """How the SNES callbacks reach their solver: a weak reference, called while the solver exists."""
@@ -313,6 +325,9 @@ class NewtonSolver:
         self._norms: list[float] = []
         self._callback_error: BaseException | None = None
         self._refusal = ""
+        self._linear_failure = 0
+        self.direct_fallbacks = 0
+        """Newton directions solved by the MUMPS fallback after a failed Krylov solve (see ``_recover_direction``)."""
         # Callbacks hold the solver weakly: a strong reference from the SNES
         # back to self would be a cycle through PETSc that Python never frees
         # (leaking the factorisation), or frees at different times per rank.
@@ -327,6 +342,8 @@ class NewtonSolver:
         # Every Newton direction goes through the pre-check: its Dirichlet
         # components are set exactly (see _precheck), then the step filters.
         self.snes.setLineSearchPreCheck(lambda x, y: me()._guarded(me()._precheck, x, y))
+        # A failed linear solve goes on to the pre-check, which recovers a direction or ends the solve.
+        self.snes.setMaxLinearSolveFailures(1_000_000)
         self.predictor = bool(predictor)
         self._boundary_predictor = BoundaryPredictor(problem, self._nlp)
 
@@ -506,8 +523,10 @@ class NewtonSolver:
         # times the largest step that keeps every cell above volume_fraction
         # of its volume, then halving until the full step keeps every
         # quadrature point above min_jacobian).
-        if self.external and self.external.exact_tangents():
-            self._descent_guard(x, y)
+        if not self._recover_direction(x, y):
+            y.zeroEntries()  # no usable direction: the solve ends as a failed linear solve (_failure)
+            self._set_state(x, hooks=False)
+            return
         fpetsc.set_bc(y, self.problem.bcs, x0=x, alpha=-1.0)
         try:
             self.step_filters.apply(x, y)
@@ -517,28 +536,57 @@ class NewtonSolver:
             self._refusal = str(refusal)
         self._set_state(x, hooks=False)
 
-    def _descent_guard(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        r"""Replace a direction that does not descend (an exact, indefinite contact tangent) by the projected one.
+    def _recover_direction(self, x: PETSc.Vec, y: PETSc.Vec) -> bool:
+        r"""Make ``y`` a usable Newton direction after a failed linear solve or a non-descending exact tangent.
 
         SNES tries :math:`x - \lambda y`: a descent direction has :math:`r\cdot y > 0`.
-        Otherwise the energies project their Hessians (until the iterates settle
-        again), the tangent is assembled again at ``x`` and ``y`` solved anew
-        (:mod:`hyperfem.contact.mesh_barrier`).
+
+        1. An exact (possibly indefinite) contact Hessian whose direction does
+           not descend, or whose tangent stopped the Krylov solve (CG on an
+           indefinite operator or preconditioner): the energies project their
+           Hessians (until the iterates settle again, :mod:`hyperfem.contact.mesh_barrier`),
+           the tangent is assembled again at ``x`` and ``y`` solved anew.
+        2. A linear solve that still failed: ``y`` solved once with MUMPS on the
+           same tangent, if the problem has at most :data:`DIRECT_FALLBACK_LIMIT`
+           unknowns (a Krylov solve that hit an indefinite tangent or its
+           iteration limit is not the end of the load step).
+
+        Returns:
+            False when no direction could be found (the solve ends as a failed
+            linear solve, which the stepper cuts back).
         """
-        r = self.snes.getFunction()[0]  # type: ignore[index, unused-ignore]  # petsc4py stubs: (Vec, callback)
-        if r.dot(y) > 0.0:
-            return
-        self.external.project_tangents()
-        J, P, _ = self.snes.getJacobian()
-        self.snes.computeJacobian(x, J, P)
         ksp = self.snes.getKSP()
-        ksp.setOperators(J, P)
-        ksp.solve(r, y)
+        failed = int(ksp.getConvergedReason()) < 0  # type: ignore[call-overload]  # petsc4py stubs: an int
+        exact = bool(self.external) and self.external.exact_tangents()
+        if not failed and not exact:
+            return True
+        r = self.snes.getFunction()[0]  # type: ignore[index, unused-ignore]  # petsc4py stubs: (Vec, callback)
+        if exact and (failed or r.dot(y) <= 0.0):
+            self.external.project_tangents()
+            J, P, _ = self.snes.getJacobian()
+            self.snes.computeJacobian(x, J, P)
+            ksp.setOperators(J, P)
+            ksp.solve(r, y)
+            failed = int(ksp.getConvergedReason()) < 0  # type: ignore[call-overload]  # an int
+        if not failed:
+            return True
+        self._linear_failure = int(ksp.getConvergedReason())  # type: ignore[call-overload]  # an int
+        if self._nlp.x.getSize() > DIRECT_FALLBACK_LIMIT:
+            return False
+        J, _, _ = self.snes.getJacobian()
+        reason = LinearSolver().solve(self.comm, J, r, y, kind="fallback")
+        self.direct_fallbacks += 1
+        if reason < 0:
+            return False
+        self._linear_failure = 0
+        return True
 
     def _converged(self, snes: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
         """SNES convergence test: a refused step ends the solve, else the round-off stop's test."""
         if self._refusal:
             return _DOMAIN
+        if self._linear_failure:
+            return _LINEAR
         return self._roundoff(snes, it, norms)
 
     # -- state -------------------------------------------------------------
@@ -671,6 +719,7 @@ class NewtonSolver:
         self._norms = []
         self._callback_error = None
         self._refusal = ""
+        self._linear_failure = 0
         self._roundoff.reset()
         if self._objective is not None:
             self._objective.reset()
@@ -730,7 +779,9 @@ class NewtonSolver:
         """The reason and message of a refused step or a failed linear solve."""
         if self._refusal and not message:
             return _DOMAIN, self._refusal
-        if reason == int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE) and not message:
+        if self._linear_failure and not message:  # no direction recovered (the line search saw a zero step)
+            return _LINEAR, f"linear solve failed (KSP reason {self._linear_failure})"
+        if reason == _LINEAR and not message:
             return reason, f"linear solve failed (KSP reason {ksp_reason})"
         return reason, message
 

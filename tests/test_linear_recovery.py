@@ -1,0 +1,65 @@
+"""A Newton direction whose Krylov solve fails is recovered, not the end of the load step.
+
+A tangent that stops CG (indefinite: an exact contact Hessian, strongly
+compressed cells; or the iteration limit) is solved again with MUMPS up to
+``DIRECT_FALLBACK_LIMIT`` unknowns (``NewtonSolver._recover_direction``).
+Here a Krylov method that can never converge (two Jacobi-CG iterations)
+stands in for the failing solve: the fallback must give the LU answer, and
+without it the solve must fail as a linear-solve failure, saying which.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hyperfem as hf
+import hyperfem.solver.newton as newton
+from hyperfem.simulation import Simulation
+from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
+
+PARAMS = hf.materials.LameParameters(mu=1.0, lmbda=2.0)
+FAILING_KRYLOV = {"ksp_type": "cg", "pc_type": "jacobi", "ksp_max_it": 2, "snes_rtol": 1e-10}
+
+
+def _solve(options: dict) -> tuple[hf.NewtonSolver, hf.SolveRecord, np.ndarray]:
+    problem = hf.HyperelasticProblem(
+        unit_cube(3), lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=uniaxial_rollers(1.3)
+    )
+    problem.set_time(1.0)
+    solver = hf.NewtonSolver(problem, options)
+    record = solver.solve()
+    return solver, record, problem.u.x.array[: problem.u.function_space.dofmap.index_map.size_local * 3].copy()
+
+
+def test_failed_krylov_solves_fall_back_to_lu_and_give_its_answer():
+    _, reference, u_lu = _solve({"snes_rtol": 1e-10})
+    solver, record, u = _solve(FAILING_KRYLOV)
+    assert reference.converged and record.converged, record.message
+    assert solver.direct_fallbacks == record.iterations > 0  # every direction came from the fallback
+    assert np.abs(u - u_lu).max() < 1e-8 * np.abs(u_lu).max()  # both converged to snes_rtol 1e-10
+
+
+def test_without_the_fallback_the_solve_fails_as_a_linear_solve(monkeypatch):
+    monkeypatch.setattr(newton, "DIRECT_FALLBACK_LIMIT", 0)
+    solver, record, _ = _solve(FAILING_KRYLOV)
+    assert not record.converged
+    assert record.reason_name == "DIVERGED_LINEAR_SOLVE"
+    assert "linear solve failed (KSP reason -3)" in record.message  # KSP_DIVERGED_ITS
+    assert solver.direct_fallbacks == 0
+
+
+@pytest.mark.parametrize("limit", [0, newton.DIRECT_FALLBACK_LIMIT])
+def test_a_stepper_run_cuts_back_or_goes_on(monkeypatch, limit):
+    """In a stepped run the failure is an ordinary failed attempt (cut back, then the minimum step)."""
+    monkeypatch.setattr(newton, "DIRECT_FALLBACK_LIMIT", limit)
+    problem = hf.HyperelasticProblem(
+        unit_cube(2), lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=uniaxial_rollers(1.2)
+    )
+    solver = hf.NewtonSolver(problem, FAILING_KRYLOV)
+    run = Simulation(problem, solver, hf.StepPolicy(increment=0.5, min_increment=0.1), [], name="recovery")
+    if limit:
+        assert run.run()["completed"]
+    else:
+        with pytest.raises(hf.ConvergenceError, match=r"linear solve failed \(KSP reason -3\)"):
+            run.run()
