@@ -3,7 +3,7 @@ r"""TOML case files: reading, ``--set`` overrides and validation into a :class:`
 A case file describes one run and maps one to one onto the objects a Python
 script builds (``hyperfem run CASE --print-python`` writes that script): a
 ``[mesh]``, ``[problem]``, one or more ``[[material]]``, optionally
-``[fibres]``, ``[[bc]]``, ``[[load]]``, ``[stepping]``, ``[solver]`` and
+``[fibres]`` (and ``[second_fibres]``), ``[[bc]]``, ``[[load]]``, ``[stepping]``, ``[solver]`` and
 ``[output]``; each key is the keyword of the same name (or the one its help
 names) of the class that table builds. Examples: ``cases/*.toml``.
 
@@ -150,9 +150,10 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
             raise CaseFileError(f"name: use letters, digits and _.+- only (it names the output files), got {name!r}")
         problem = sections.check_problem(top.get("problem", {}))
         fibres = sections.check_fibres(top["fibres"]) if "fibres" in top else None
-        materials = sections.check_materials(top["material"], problem.formulation == "mixed", fibres is not None)
-        if fibres is not None and not any(m.law == "muscle" for m in materials):
-            raise CaseFileError("fibres: no material uses fibres (only law = \"muscle\" does)")
+        second = sections.check_fibres(top["second_fibres"], "second_fibres") if "second_fibres" in top else None
+        mixed = problem.formulation == "mixed"
+        materials = sections.check_materials(top["material"], mixed, fibres is not None, second is not None)
+        sections.check_fibre_use(materials, fibres, second)
         bcs = sections.check_bcs(top.get("bc", []))
         loads = sections.check_loads(top.get("load", []))
         contacts = sections.check_contacts(top.get("contact", []), source)
@@ -182,6 +183,7 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
             problem=problem,
             materials=materials,
             fibres=fibres,
+            second_fibres=second,
             bcs=bcs,
             loads=loads,
             contacts=contacts,

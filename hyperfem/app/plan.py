@@ -18,13 +18,24 @@ import dataclasses
 import hashlib
 import json
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from hyperfem import dynamics as dyn
 from hyperfem.app.calls import Attr, Call, Energy, Join, Ref
 from hyperfem.app.report import progress_line
-from hyperfem.app.spec import LAME_LAWS, BCSpec, Case, ContactSpec, LoadSpec, MaterialSpec, Profile, RenderSpec
+from hyperfem.app.spec import (
+    LAME_LAWS,
+    BCSpec,
+    Case,
+    ContactSpec,
+    FibreSpec,
+    LoadSpec,
+    MaterialSpec,
+    Profile,
+    RenderSpec,
+)
 from hyperfem.contact import (
     ContactField,
     CylinderContact,
@@ -39,19 +50,43 @@ from hyperfem.io import ensure_output_dir
 from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
 from hyperfem.materials import (
     ARAP,
+    ArrudaBoyceParameters,
     CorotationalLinear,
     FixedCorotated,
+    FungOrthotropicParameters,
+    GentParameters,
+    HolzapfelGasserOgdenParameters,
     LameParameters,
     MooneyRivlinParameters,
     MuscleParameters,
+    ReducedPolynomialParameters,
+    VerondaWestmannParameters,
+    WeissParameters,
+    YeohParameters,
+    arruda_boyce,
+    arruda_boyce_isochoric,
+    fung_orthotropic,
+    fung_orthotropic_isochoric,
+    gent,
+    gent_isochoric,
+    holzapfel_gasser_ogden,
+    holzapfel_gasser_ogden_isochoric,
     linear_elastic,
     muscle,
     muscle_isochoric,
     neo_hookean,
+    reduced_polynomial,
+    reduced_polynomial_isochoric,
     robust_neo_hookean,
     saint_venant_kirchhoff,
     stable_neo_hookean,
+    veronda_westmann,
+    veronda_westmann_isochoric,
+    weiss,
+    weiss_isochoric,
     with_parameters,
+    yeoh,
+    yeoh_isochoric,
 )
 from hyperfem.materials.mooney_rivlin import mooney_rivlin, mooney_rivlin_isochoric
 from hyperfem.materials.neo_hookean import neo_hookean_isochoric
@@ -202,6 +237,43 @@ def _lame_material(m: MaterialSpec, params: str, material: str, mixed: bool) -> 
     return out
 
 
+@dataclass(frozen=True)
+class _Law:
+    """A law whose case-file keys are the fields of its parameter class.
+
+    Attributes:
+        parameters: The parameter class (the keys are its keyword arguments).
+        energy: ``psi(F, *directions, params)`` with its volumetric term.
+        isochoric: Its isochoric part, same arguments (the ``SplitEnergy`` of ``formulation = "mixed"``).
+        directions: The direction fields after ``F``: ``fibres`` (``[fibres]``), ``second_fibres``.
+    """
+
+    parameters: type
+    energy: Callable
+    isochoric: Callable
+    directions: tuple[str, ...] = ()
+
+
+_LAWS = {
+    "yeoh": _Law(YeohParameters, yeoh, yeoh_isochoric),
+    "reduced_polynomial": _Law(ReducedPolynomialParameters, reduced_polynomial, reduced_polynomial_isochoric),
+    "gent": _Law(GentParameters, gent, gent_isochoric),
+    "arruda_boyce": _Law(ArrudaBoyceParameters, arruda_boyce, arruda_boyce_isochoric),
+    "veronda_westmann": _Law(VerondaWestmannParameters, veronda_westmann, veronda_westmann_isochoric),
+    "holzapfel_gasser_ogden": _Law(
+        HolzapfelGasserOgdenParameters,
+        holzapfel_gasser_ogden,
+        holzapfel_gasser_ogden_isochoric,
+        ("fibres", "second_fibres"),
+    ),
+    "weiss": _Law(WeissParameters, weiss, weiss_isochoric, ("fibres",)),
+    "fung_orthotropic": _Law(
+        FungOrthotropicParameters, fung_orthotropic, fung_orthotropic_isochoric, ("fibres", "second_fibres")
+    ),
+}
+"""The rubber and tissue laws (:data:`~hyperfem.app.spec.RUBBER_LAWS`, :data:`~hyperfem.app.spec.TISSUE_LAWS`)."""
+
+
 def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> list[Statement]:
     """``params`` and ``material`` statements of one material."""
     params, material = f"params{suffix}", f"material{suffix}"
@@ -212,7 +284,13 @@ def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> l
         kwargs["volumetric"] = m.volumetric
     iso: Energy
     whole: Call | Energy
-    if m.law == "mooney_rivlin":
+    if m.law in _LAWS:
+        law = _LAWS[m.law]
+        out = [Statement(m.key, params, Call.of(law.parameters, **kwargs))]
+        bound = (*(Ref(d) for d in law.directions), Ref(params))
+        iso = Energy(law.isochoric, bound)
+        whole = Energy(law.energy, bound) if law.directions else Call.of(with_parameters, law.energy, Ref(params))
+    elif m.law == "mooney_rivlin":
         out = [Statement(m.key, params, Call.of(MooneyRivlinParameters, **kwargs))]
         iso = Energy(mooney_rivlin_isochoric, (Attr(Ref(params), "c1"), Attr(Ref(params), "c2")))
         whole = Call.of(with_parameters, mooney_rivlin, Ref(params))
@@ -256,6 +334,8 @@ def model_hash(case: Case) -> str:
     model: list[object] = [case.mesh, case.problem, case.materials, case.fibres, case.bcs, case.loads]
     if case.contacts:  # (cases without contact keep the hash they had before contact existed)
         model.append(case.contacts)
+    if case.second_fibres is not None:  # (likewise the cases without a second direction)
+        model.append(case.second_fibres)
     text = json.dumps(_plain(tuple(model)), sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -307,8 +387,9 @@ def _path(case: Case, path: Path) -> object:
 
 def _uses_case_dir(case: Case) -> bool:
     files = [case.mesh.file]
-    if case.fibres is not None and case.fibres.type not in ("laplace", "constant"):
-        files.append(_fibre_file(case))
+    for fibres in (case.fibres, case.second_fibres):
+        if fibres is not None and fibres.type not in ("laplace", "constant"):
+            files.append(_fibre_file(case, fibres))
     files += [c.file for c in case.contacts if c.file is not None]
     return any(f is not None and _case_relative(case, f) is not None for f in files)
 
@@ -339,27 +420,31 @@ def _mesh(case: Case) -> Statement:
 
 
 def _fibres(case: Case) -> list[Statement]:
-    """``[fibres]``: Laplace, constant or from a file."""
-    f = case.fibres
-    if f is None:
-        return []
-    rep: dict[str, object] = {"representation": f.representation} if f.representation != "DG0" else {}
-    if f.representation == "quadrature":
-        rep["quadrature_degree"] = _quadrature_degree(case)
-    if f.type == "laplace":
-        value = Call.of(laplace_fibres, Ref("domain"), f.options["source"], f.options["target"], **rep)
-    elif f.type == "constant":
-        value = Call.of(constant_fibres, Attr(Ref("domain"), "mesh"), f.options["direction"], **rep)
-    else:
-        extra = {"location": f.options["location"]} if "location" in f.options else {}
-        value = Call.of(fibres_from_file, Ref("domain"), _path(case, _fibre_file(case)), f.options["name"], **extra)
-    return [Statement("fibres", "fibres", value)]
+    """``[fibres]`` and ``[second_fibres]``: Laplace, constant or from a file."""
+    out = []
+    for name, f in (("fibres", case.fibres), ("second_fibres", case.second_fibres)):
+        if f is None:
+            continue
+        rep: dict[str, object] = {"representation": f.representation} if f.representation != "DG0" else {}
+        if f.representation == "quadrature":
+            rep["quadrature_degree"] = _quadrature_degree(case)
+        if f.type == "laplace":
+            value = Call.of(laplace_fibres, Ref("domain"), f.options["source"], f.options["target"], **rep)
+        elif f.type == "constant":
+            value = Call.of(constant_fibres, Attr(Ref("domain"), "mesh"), f.options["direction"], **rep)
+        else:
+            extra = {"location": f.options["location"]} if "location" in f.options else {}
+            file = _path(case, _fibre_file(case, f))
+            value = Call.of(fibres_from_file, Ref("domain"), file, f.options["name"], **extra)
+        out.append(Statement(name, name, value))
+    return out
 
 
-def _fibre_file(case: Case) -> Path:
-    """The fibre file of ``[fibres] file`` (absolute)."""
-    assert case.fibres is not None
-    path = Path(case.fibres.options["file"]).expanduser()
+def _fibre_file(case: Case, fibres: FibreSpec | None = None) -> Path:
+    """The fibre file of ``[fibres] file`` (or of ``fibres``: ``[second_fibres]``), absolute."""
+    spec = case.fibres if fibres is None else fibres
+    assert spec is not None
+    path = Path(spec.options["file"]).expanduser()
     return path if path.is_absolute() else (case.source.parent / path).resolve()
 
 

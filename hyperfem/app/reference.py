@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 from hyperfem.app import sections as S
 from hyperfem.app.schema import Key
-from hyperfem.app.spec import LAME_LAWS
+from hyperfem.app.spec import LAME_LAWS, RUBBER_LAWS, TISSUE_LAWS
 
 __all__ = ["LAYOUT", "RULES", "SHAPES", "Shape", "Table", "dumps", "json_schema", "key_tables", "reference"]
 
@@ -98,9 +98,11 @@ LAYOUT: dict[str, Table] = {
             (LAME_LAWS, S._LAME),
             (("mooney_rivlin",), S._MOONEY),
             (("muscle",), S._MUSCLE),
+            *(((law,), S.LAW_KEYS[law]) for law in (*RUBBER_LAWS, *TISSUE_LAWS)),
         ),
     ),
     "fibres": Table("fibres", S.FIBRE_COMMON, on="type", variants=_by_type(S.FIBRES)),
+    "second_fibres": Table("second_fibres", S.FIBRE_COMMON, on="type", variants=_by_type(S.FIBRES)),
     "bc": Table("bc", S._BC_COMMON, array=True, on="type", variants=_by_type(S.BCS)),
     "load": Table("load", S._LOAD_COMMON, array=True, on="type", variants=_by_type(S.LOADS)),
     "contact": Table("contact", S._CONTACT_COMMON, array=True, on="type", variants=_by_type(S.CONTACTS)),

@@ -22,6 +22,7 @@ from hyperfem.app.spec import (
     AXES,
     BC_TYPES,
     CONTACT_TYPES,
+    FIBRE_LAWS,
     FIBRE_TYPES,
     FORMULATIONS,
     LAME_LAWS,
@@ -32,6 +33,7 @@ from hyperfem.app.spec import (
     PROFILE_TYPES,
     REPRESENTATIONS,
     SCHEMES,
+    SECOND_FIBRE_LAWS,
     BCSpec,
     ContactSpec,
     FibreSpec,
@@ -46,6 +48,18 @@ from hyperfem.app.spec import (
     SteppingSpec,
 )
 from hyperfem.errors import ParameterError
+from hyperfem.materials import (
+    ArrudaBoyceParameters,
+    FungOrthotropicParameters,
+    GentParameters,
+    HolzapfelGasserOgdenParameters,
+    MooneyRivlinParameters,
+    ReducedPolynomialParameters,
+    VerondaWestmannParameters,
+    WeissParameters,
+    YeohParameters,
+)
+from hyperfem.materials.holzapfel_gasser_ogden import HGO_SWITCHES
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
 from hyperfem.simulation.fields import FIELDS, FORMATS
 from hyperfem.simulation.render import DEFAULT_VIEW, RENDER_SCALARS, UNDEFORMED, check_render_options
@@ -55,6 +69,7 @@ __all__ = [
     "TOP",
     "check_bcs",
     "check_contacts",
+    "check_fibre_use",
     "check_fibres",
     "check_loads",
     "check_materials",
@@ -88,7 +103,11 @@ TOP = {
     "material": Key("tables", required=True, hint="at least one [[material]]",
                     help="the strain energy: one [[material]] for the whole body, or one per region; its keys "
                     "depend on law"),
-    "fibres": Key("table", help="fibre directions, needed by law \"muscle\" (hf.fibres); its keys depend on type"),
+    "fibres": Key("table", help="fibre directions, needed by the laws muscle, holzapfel_gasser_ogden (a01), weiss "
+                  "and fung_orthotropic (a1) (hf.fibres); its keys depend on type"),
+    "second_fibres": Key("table", help="a second direction field, the keys of [fibres]: the second fibre family a02 "
+                         "of holzapfel_gasser_ogden, the second material axis a2 of fung_orthotropic (orthogonal to "
+                         "a1; a3 = a1 x a2)"),
     "bc": Key("tables", help="Dirichlet conditions, one [[bc]] each; its keys depend on type"),
     "load": Key("tables", help="loads, one [[load]] each; its keys depend on type"),
     "contact": Key("tables", help="contact with obstacles, one [[contact]] each: a rigid plane, sphere or triangulated "
@@ -138,7 +157,8 @@ PROBLEM = {
 _COMMON_MATERIAL = {
     "law": Key("string", required=True, choices=LAWS, example="neo_hookean",
                help="the strain energy (hf.materials): isotropic laws take two elastic constants, mooney_rivlin "
-               "c1, c2, K, muscle a preset or c1, c2, K, T_max"),
+               "c1, c2, K, muscle a preset or c1, c2, K, T_max; the rubber and tissue laws the fields of their "
+               "parameter class (YeohParameters, ...)"),
     "region": Key("string", example="muscle",
                   help="cell group of the mesh this material fills; needed with several materials; default: the "
                   "whole body"),
@@ -183,6 +203,134 @@ _MUSCLE = {
                       help="active fraction alpha in [0, 1]: a number, or a profile f(t) (\"linear\": alpha = load "
                       "factor); default 0 (passive)"),
 }
+
+_VOLUMETRIC = Key("string", choices=VOLUMETRIC, default="log",
+                  help="the volumetric energy U(J), with formulation = \"mixed\" U(theta) (the class's volumetric)")
+_BULK = Key("number", above=0.0, required=True, example=5.0e7, help="bulk modulus K in Pa")
+_YEOH = {
+    "c10": Key("number", above=0.0, required=True, example=2.0e5,
+               help="Yeoh C10 in Pa, half the small-strain shear modulus (hf.materials.YeohParameters; "
+               "O. H. Yeoh, Rubber Chem. Technol. 66 (1993) 754)"),
+    "c20": Key("number", required=True, example=-2.0e3, help="Yeoh C20 in Pa, any sign (usually negative)"),
+    "c30": Key("number", required=True, example=1.0e2, help="Yeoh C30 in Pa, any sign (usually small and positive)"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
+_REDUCED_POLYNOMIAL = {
+    "coefficients": Key("numbers", required=True, example=(2.0e5, -2.0e3, 1.0e2),
+                        help="C10, C20, ..., CN0 in Pa of the sum of Ci0 (I1bar - 3)^i, C10 > 0, the others any "
+                        "sign (hf.materials.ReducedPolynomialParameters; N = 3 is yeoh)"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
+_GENT = {
+    "mu": Key("number", above=0.0, required=True, example=4.0e5,
+              help="small-strain shear modulus in Pa (hf.materials.GentParameters; A. N. Gent, Rubber Chem. "
+              "Technol. 69 (1996) 59)"),
+    "Jm": Key("number", above=0.0, required=True, example=30.0,
+              help="limiting value of I1bar - 3, the lock (dimensionless)"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+    "lock_fraction": Key("number", above=0.0, below=1.0, example=0.9,
+                         help="continue the logarithm quadratically from I1bar - 3 = lock_fraction Jm on, so that "
+                         "Newton iterates may pass over-stretched states; default: the exact law (no value beyond "
+                         "the lock)"),
+}
+_ARRUDA_BOYCE = {
+    "mu": Key("number", above=0.0, required=True, example=4.0e5,
+              help="modulus mu of the five-term series in Pa, not quite the small-strain shear modulus "
+              "(hf.materials.ArrudaBoyceParameters, Abaqus form; E. M. Arruda, M. C. Boyce, J. Mech. Phys. Solids "
+              "41 (1993) 389)"),
+    "lambda_m": Key("number", above=1.0, required=True, example=3.0,
+                    help="locking stretch lambda_m (lambda_m^2 = N, the links per chain)"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
+_VERONDA_WESTMANN = {
+    "c1": Key("number", above=0.0, required=True, example=2.0e3,
+              help="stress scale c1 in Pa; small-strain shear modulus c1 c2 (hf.materials.VerondaWestmannParameters; "
+              "D. R. Veronda, R. A. Westmann, J. Biomech. 3 (1970) 111)"),
+    "c2": Key("number", above=0.0, required=True, example=10.0, help="exponent c2 of exp(c2 (I1bar - 3))"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
+_HOLZAPFEL_GASSER_OGDEN = {
+    "mu": Key("number", above=0.0, required=True, example=7.64e3,
+              help="shear modulus of the neo-Hookean matrix in Pa (hf.materials.HolzapfelGasserOgdenParameters; "
+              "T. C. Gasser, R. W. Ogden, G. A. Holzapfel, J. R. Soc. Interface 3 (2006) 15); the families: "
+              "[fibres] (a01) and [second_fibres] (a02)"),
+    "k1": Key("number", minimum=0.0, required=True, example=9.966e5, help="fibre stiffness k1 in Pa"),
+    "k2": Key("number", above=0.0, required=True, example=524.6, help="fibre exponent k2 (dimensionless)"),
+    "kappa": Key("number", minimum=0.0, maximum=1.0 / 3.0, required=True, example=0.226,
+                 help="fibre dispersion: 0 aligned, 1/3 isotropic"),
+    "K": _BULK,
+    "switch": Key("string", choices=HGO_SWITCHES, default="strain",
+                  help="fibres in tension only: a family acts while its strain E > 0 (strain, as FEBio), while "
+                  "I4bar > 1 (stretch), or always (none)"),
+    "smoothing": Key("number", minimum=0.0, default=0.0,
+                     help="width of a tanh-smoothed switch, in units of E (strain) or I4bar - 1 (stretch); 0: exact"),
+    "volumetric": _VOLUMETRIC,
+}
+_WEISS = {
+    "c1": Key("number", above=0.0, required=True, example=1.44e6,
+              help="Mooney-Rivlin c1 of the matrix in Pa (hf.materials.WeissParameters; J. A. Weiss, B. N. Maker, "
+              "S. Govindjee, Comput. Methods Appl. Mech. Engrg. 135 (1996) 107); the fibres: [fibres]"),
+    "c2": Key("number", minimum=0.0, required=True, example=0.0, help="Mooney-Rivlin c2 of the matrix in Pa"),
+    "c3": Key("number", minimum=0.0, required=True, example=5.7e5,
+              help="scale of the exponential fibre stress of the toe region in Pa"),
+    "c4": Key("number", above=0.0, required=True, example=48.0, help="rate of fibre uncrimping (dimensionless)"),
+    "c5": Key("number", minimum=0.0, required=True, example=4.671e8, help="modulus of the straightened fibres in Pa"),
+    "lambda_star": Key("number", above=1.0, required=True, example=1.062,
+                       help="fibre stretch at which the fibres are straight (the toe region ends)"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
+_FUNG = {
+    "c": Key("number", above=0.0, required=True, example=1.0e4,
+             help="stress scale c in Pa of c/2 (exp(Q) - 1) (hf.materials.FungOrthotropicParameters; Y. C. Fung, "
+             "K. Fronek, P. Patitucci, Am. J. Physiol. 237 (1979) H620); the axes: [fibres] (a1), [second_fibres] "
+             "(a2), a3 = a1 x a2"),
+    "b1": Key("number", required=True, example=10.0,
+              help="coefficient of E11^2 (dimensionless); [[b1, b4, b6], [b4, b2, b5], [b6, b5, b3]] must be "
+              "positive definite"),
+    "b2": Key("number", required=True, example=5.0, help="coefficient of E22^2"),
+    "b3": Key("number", required=True, example=5.0, help="coefficient of E33^2"),
+    "b4": Key("number", required=True, example=1.0, help="coupling of E11 E22 (its term 2 b4 E11 E22)"),
+    "b5": Key("number", required=True, example=1.0, help="coupling of E22 E33"),
+    "b6": Key("number", required=True, example=1.0, help="coupling of E33 E11"),
+    "b7": Key("number", above=0.0, required=True, example=3.0, help="shear coefficient of E12^2 (its term 2 b7 E12^2)"),
+    "b8": Key("number", above=0.0, required=True, example=3.0, help="shear coefficient of E23^2"),
+    "b9": Key("number", above=0.0, required=True, example=3.0, help="shear coefficient of E31^2"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
+LAW_KEYS = {
+    **dict.fromkeys(LAME_LAWS, _LAME),
+    "mooney_rivlin": _MOONEY,
+    "muscle": _MUSCLE,
+    "yeoh": _YEOH,
+    "reduced_polynomial": _REDUCED_POLYNOMIAL,
+    "gent": _GENT,
+    "arruda_boyce": _ARRUDA_BOYCE,
+    "veronda_westmann": _VERONDA_WESTMANN,
+    "holzapfel_gasser_ogden": _HOLZAPFEL_GASSER_OGDEN,
+    "weiss": _WEISS,
+    "fung_orthotropic": _FUNG,
+}
+"""The own keys of a ``[[material]]`` of each law (besides :data:`_COMMON_MATERIAL`)."""
+PARAMETER_CLASSES: dict[str, type] = {
+    "mooney_rivlin": MooneyRivlinParameters,
+    "yeoh": YeohParameters,
+    "reduced_polynomial": ReducedPolynomialParameters,
+    "gent": GentParameters,
+    "arruda_boyce": ArrudaBoyceParameters,
+    "veronda_westmann": VerondaWestmannParameters,
+    "holzapfel_gasser_ogden": HolzapfelGasserOgdenParameters,
+    "weiss": WeissParameters,
+    "fung_orthotropic": FungOrthotropicParameters,
+}
+"""Laws whose keys are the fields of a parameter class: made once while checking, so that its
+one-line :class:`~hyperfem.errors.ParameterError` names the entry before anything is built."""
 
 FIBRE_COMMON = {
     "type": Key("string", required=True, choices=FIBRE_TYPES, example="laplace",
@@ -609,14 +757,14 @@ def _elastic_pair(values: Mapping, law: str, where: str, mixed: bool) -> None:
         )
 
 
-def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool) -> MaterialSpec:
+def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_second: bool) -> MaterialSpec:
     where = join("material", index)
     if not isinstance(table, Mapping):
         raise CaseFileError(f"{where}: expected a table, got {describe(table)}")
     if "law" not in table:
         raise CaseFileError(f"{where}: missing required key 'law' (one of {', '.join(LAWS)})")
     law = check_value(table["law"], _COMMON_MATERIAL["law"], join(where, "law"))
-    own = _LAME if law in LAME_LAWS else (_MOONEY if law == "mooney_rivlin" else _MUSCLE)
+    own = LAW_KEYS[law]
     nu = table.get("nu")
     if isinstance(nu, (int, float)) and not isinstance(nu, bool) and math.isfinite(nu) and not -1.0 < nu < 0.5:
         raise CaseFileError(
@@ -631,10 +779,20 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool) -> Mate
         )
     if law in LAME_LAWS:
         _elastic_pair(values, law, where, mixed)
+    if law in FIBRE_LAWS and not has_fibres:
+        raise CaseFileError(f"{where}: law \"{law}\" needs fibre directions: add a [fibres] table")
+    if law in SECOND_FIBRE_LAWS and not has_second:
+        second = "family a02" if law == "holzapfel_gasser_ogden" else "material axis a2"
+        raise CaseFileError(f"{where}: law \"{law}\" needs a second direction, its {second}: add a [second_fibres] "
+                            "table (the keys of [fibres])")
+    if law in PARAMETER_CLASSES:
+        given = {k: v for k, v in values.items() if k in own}
+        try:
+            PARAMETER_CLASSES[law](**given)
+        except ParameterError as exc:
+            raise CaseFileError(f"{where}: {exc}") from None
     activation = None
     if law == "muscle":
-        if not has_fibres:
-            raise CaseFileError(f"{where}: law \"muscle\" needs fibre directions: add a [fibres] table")
         if "preset" not in values:
             missing = [k for k in ("c1", "c2", "K", "T_max") if k not in values]
             if missing:
@@ -662,11 +820,17 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool) -> Mate
     )
 
 
-def check_materials(entries: list, mixed: bool, has_fibres: bool) -> tuple[MaterialSpec, ...]:
-    """The ``[[material]]`` entries: one without region (the whole body), or one per distinct region."""
+def check_materials(
+    entries: list, mixed: bool, has_fibres: bool, has_second_fibres: bool = False
+) -> tuple[MaterialSpec, ...]:
+    """The ``[[material]]`` entries: one without region (the whole body), or one per distinct region.
+
+    ``has_fibres``, ``has_second_fibres``: whether the case has ``[fibres]`` and ``[second_fibres]``
+    (the laws of :data:`~hyperfem.app.spec.FIBRE_LAWS` and :data:`~hyperfem.app.spec.SECOND_FIBRE_LAWS` need them).
+    """
     if not entries:
         raise CaseFileError("material: at least one [[material]] is needed")
-    materials = tuple(_material(i, t, mixed, has_fibres) for i, t in enumerate(entries))
+    materials = tuple(_material(i, t, mixed, has_fibres, has_second_fibres) for i, t in enumerate(entries))
     whole = [m for m in materials if m.region is None]
     if whole and len(materials) > 1:
         raise CaseFileError(
@@ -681,17 +845,47 @@ def check_materials(entries: list, mixed: bool, has_fibres: bool) -> tuple[Mater
     return materials
 
 
-def check_fibres(table: Mapping) -> FibreSpec:
-    """``[fibres]``: Laplace rule, constant direction or a file's point/cell data."""
-    where = "fibres"
+def check_fibres(table: Mapping, where: str = "fibres") -> FibreSpec:
+    """``[fibres]`` (or ``[second_fibres]``, ``where``): Laplace rule, constant direction or point/cell data."""
     if "type" not in table:
         raise CaseFileError(f"{where}: missing required key 'type' ({', '.join(FIBRE_TYPES)})")
-    kind = check_value(table["type"], FIBRE_COMMON["type"], "fibres.type")
+    kind = check_value(table["type"], FIBRE_COMMON["type"], f"{where}.type")
     values = check_table(table, {**FIBRE_COMMON, **FIBRES[kind]}, where, what=f"fibres of type {kind!r}")
     options = {k: v for k, v in values.items() if k not in ("type", "representation")}
     if kind == "file" and "representation" in values:
-        raise CaseFileError("fibres.representation: fibres from a file are P1 (location = \"point\") or DG0 (\"cell\")")
+        raise CaseFileError(
+            f"{where}.representation: fibres from a file are P1 (location = \"point\") or DG0 (\"cell\")"
+        )
     return FibreSpec(kind, options, values.get("representation", "DG0"))
+
+
+def check_fibre_use(
+    materials: Sequence[MaterialSpec], fibres: FibreSpec | None, second: FibreSpec | None
+) -> None:
+    """``[fibres]`` and ``[second_fibres]`` must be used by some law; constant Fung axes must be orthogonal.
+
+    (Whether a law that needs them has them is :func:`check_materials`'s check.)
+    """
+    laws = {m.law for m in materials}
+    if fibres is not None and not laws & set(FIBRE_LAWS):
+        raise CaseFileError(f"fibres: no material uses fibres (only the laws {', '.join(FIBRE_LAWS)} do)")
+    if second is not None and fibres is None:
+        raise CaseFileError("second_fibres: the second direction needs the first: add a [fibres] table")
+    if second is not None and not laws & set(SECOND_FIBRE_LAWS):
+        raise CaseFileError(
+            f"second_fibres: no material uses a second direction (only the laws {', '.join(SECOND_FIBRE_LAWS)} do)"
+        )
+    if "fung_orthotropic" in laws and fibres is not None and second is not None:
+        if fibres.type == "constant" and second.type == "constant":
+            a1, a2 = fibres.options["direction"], second.options["direction"]
+            n1, n2 = math.hypot(*a1), math.hypot(*a2)
+            if len(a1) == len(a2) and n1 > 0.0 and n2 > 0.0:
+                cosine = sum(x * y for x, y in zip(a1, a2, strict=True)) / (n1 * n2)
+                if abs(cosine) > 1e-6:
+                    raise CaseFileError(
+                        "second_fibres.direction: the axes of law \"fung_orthotropic\" must be orthogonal, but the "
+                        f"[fibres] and [second_fibres] directions make cos = {cosine:.6g}"
+                    )
 
 
 def _components(value: object, where: str) -> tuple[int, ...]:

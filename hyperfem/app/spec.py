@@ -13,9 +13,13 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "FIBRE_LAWS",
     "LAME_LAWS",
     "LAWS",
     "MIXED_LAWS",
+    "RUBBER_LAWS",
+    "SECOND_FIBRE_LAWS",
+    "TISSUE_LAWS",
     "BCSpec",
     "ContactSpec",
     "Case",
@@ -44,11 +48,23 @@ LAME_LAWS = (
 )
 """Isotropic laws with the elastic constants E/nu, mu/lambda or mu/bulk_modulus."""
 
-LAWS = (*LAME_LAWS, "mooney_rivlin", "muscle")
+RUBBER_LAWS = ("yeoh", "reduced_polynomial", "gent", "arruda_boyce", "veronda_westmann")
+"""Isotropic laws of the isochoric invariants with a bulk modulus ``K`` (issue 21)."""
+
+TISSUE_LAWS = ("holzapfel_gasser_ogden", "weiss", "fung_orthotropic")
+"""Fibre-reinforced tissue laws with a bulk modulus ``K`` (issue 21)."""
+
+LAWS = (*LAME_LAWS, "mooney_rivlin", "muscle", *RUBBER_LAWS, *TISSUE_LAWS)
 """Every ``law`` a ``[[material]]`` can name."""
 
-MIXED_LAWS = ("neo_hookean", "mooney_rivlin", "muscle")
+MIXED_LAWS = ("neo_hookean", "mooney_rivlin", "muscle", *RUBBER_LAWS, *TISSUE_LAWS)
 """Laws with an isochoric/volumetric split, usable with ``formulation = "mixed"``."""
+
+FIBRE_LAWS = ("muscle", *TISSUE_LAWS)
+"""Laws that need the fibre directions of ``[fibres]``."""
+
+SECOND_FIBRE_LAWS = ("holzapfel_gasser_ogden", "fung_orthotropic")
+"""Laws that also need the second direction of ``[second_fibres]`` (HGO's second family, Fung's second axis)."""
 
 FORMULATIONS = ("displacement", "mixed")
 SCHEMES = ("newmark", "backward_euler", "generalized_alpha", "quasi_static")
@@ -124,7 +140,9 @@ class MaterialSpec:
         key: Key path (``"material[0]"``).
         law: One of :data:`LAWS`.
         region: Cell group, or ``None`` for the whole domain.
-        parameters: The law's constants as given (``E``, ``nu``, ``c1``, ...).
+        parameters: The law's constants as given (``E``, ``nu``, ``c1``, ...); for the laws of
+            :data:`RUBBER_LAWS` and :data:`TISSUE_LAWS` and ``mooney_rivlin`` the keyword arguments of
+            their parameter class, ``volumetric`` aside.
         density: Mass density, or ``None``.
         volumetric: Volumetric law name, or ``None`` (the law's default).
         preset: ``"muscle"``/``"tendon"`` parameter set of the muscle law, or ``None``.
@@ -134,7 +152,7 @@ class MaterialSpec:
     key: str
     law: str
     region: str | None = None
-    parameters: Mapping[str, float] = field(default_factory=dict)
+    parameters: Mapping[str, Any] = field(default_factory=dict)
     density: float | None = None
     volumetric: str | None = None
     preset: str | None = None
@@ -143,7 +161,7 @@ class MaterialSpec:
 
 @dataclass(frozen=True)
 class FibreSpec:
-    """``[fibres]``: how the unit fibre field is made.
+    """``[fibres]`` (or ``[second_fibres]``): how a unit direction field is made.
 
     Attributes:
         type: ``"laplace"``, ``"constant"`` or ``"file"``.
@@ -363,6 +381,7 @@ class Case:
         name: Name of the run (output files).
         description: Free text.
         mesh, problem, materials, fibres, bcs, loads, stepping, solver, output, contacts: The sections.
+        second_fibres: ``[second_fibres]``, the second direction of :data:`SECOND_FIBRE_LAWS`, or ``None``.
     """
 
     source: Path
@@ -378,6 +397,7 @@ class Case:
     solver: SolverSpec
     output: OutputSpec
     contacts: tuple[ContactSpec, ...] = ()
+    second_fibres: FibreSpec | None = None
 
     @property
     def dynamic(self) -> bool:
