@@ -1,4 +1,6 @@
-"""The polar-rotation laws of a case file, run: ``fixed_corotated``, ``arap``, ``corotational_linear``.
+"""Laws of a case file, run: the polar-rotation laws (``fixed_corotated``, ``arap``, ``corotational_linear``)
+and the rubber and tissue laws of issue 21 (``yeoh``, ``reduced_polynomial``, ``gent``, ``arruda_boyce``,
+``veronda_westmann``, ``holzapfel_gasser_ogden``, ``weiss``, ``fung_orthotropic``).
 
 Each case runs in process through the path of ``hyperfem run``
 (:func:`hyperfem.app.main.dispatch`), and its ``--print-python`` script,
@@ -26,13 +28,25 @@ first. ``output.fields = ["von_mises"]`` with these laws gives the exact
 stress in every cell, on P1 (rotation at the cell's one quadrature point) and
 on P2 (rotation at quadrature points: the cell average on their rule).
 
+The rubber and tissue laws stretch a unit cube on rollers on its six faces to
+:math:`F = \\operatorname{diag}(1.3, 0.9, 1.1)`; their directions (``[fibres]``,
+``[second_fibres]``) keep :math:`P` diagonal, so the reaction of each moved face
+is the law's closed-form ``*_stress`` (evaluated by DOLFINx at that :math:`F`)
+times its unit area; yeoh, gent and both HGO switches also with
+``formulation = "mixed"``, HGO also through its ``--print-python`` script. Bad
+values, keys and directions are refused in one line before anything is built,
+also through the ``hyperfem`` command.
+
 Runs serially and under ``mpiexec -n 2``.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -138,28 +152,34 @@ def folder(tmp_path_factory) -> Path:
     path = Path(tmp_path_factory.mktemp("materials")) if comm.rank == 0 else None
     path = comm.bcast(path, root=0)
     if comm.rank == 0:
-        from hyperfem.mesh.gmsh_session import gmsh_session
-
-        with gmsh_session() as gmsh:
-            gmsh.model.add("box")
-            gmsh.model.occ.addBox(0.0, 0.0, 0.0, *BOX)
-            gmsh.model.occ.synchronize()
-            for dim, tag in gmsh.model.getEntities(2):
-                centre = gmsh.model.occ.getCenterOfMass(dim, tag)
-                axis = next(i for i in range(3) if abs(centre[i] - 0.5 * BOX[i]) > 1e-8)
-                side = 0 if centre[axis] < 1e-8 else 1
-                name = f"{'xyz'[axis]}{side}"
-                gmsh.model.addPhysicalGroup(2, [tag], FACES.index(name) + 1, name=name)
-            gmsh.model.addPhysicalGroup(3, [t for _, t in gmsh.model.getEntities(3)], 1, name="box")
-            gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5)
-            gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
-            gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-            gmsh.option.setNumber("General.NumThreads", 1)
-            gmsh.model.mesh.generate(3)
-            gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-            gmsh.write(str(path / "box.msh"))
+        _write_box(path / "box.msh", BOX, 0.5)
+        _write_box(path / "cube.msh", (1.0, 1.0, 1.0), 0.5)
     comm.Barrier()
     return path
+
+
+def _write_box(path: Path, box: tuple[float, float, float], size: float) -> None:
+    """The box [0, box[0]] x [0, box[1]] x [0, box[2]], element size ``size``, a group per face (gmsh, one rank)."""
+    from hyperfem.mesh.gmsh_session import gmsh_session
+
+    with gmsh_session() as gmsh:
+        gmsh.model.add("box")
+        gmsh.model.occ.addBox(0.0, 0.0, 0.0, *box)
+        gmsh.model.occ.synchronize()
+        for dim, tag in gmsh.model.getEntities(2):
+            centre = gmsh.model.occ.getCenterOfMass(dim, tag)
+            axis = next(i for i in range(3) if abs(centre[i] - 0.5 * box[i]) > 1e-8)
+            side = 0 if centre[axis] < 1e-8 else 1
+            name = f"{'xyz'[axis]}{side}"
+            gmsh.model.addPhysicalGroup(2, [tag], FACES.index(name) + 1, name=name)
+        gmsh.model.addPhysicalGroup(3, [t for _, t in gmsh.model.getEntities(3)], 1, name="box")
+        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.model.mesh.generate(3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(str(path))
 
 
 def _roller(face: str, value: float = 0.0) -> str:
@@ -397,3 +417,268 @@ def test_stress_field_from_a_checkpoint_of_a_rotated_state(folder):
     wrong = mises(2.0 * MU * (Q @ D - np.eye(3)) @ (Q @ D).T / J)
     assert abs(wrong - right) > 0.1 * right  # the check can tell the two apart
     np.testing.assert_allclose(field.functions[0].x.array, right, rtol=1e-6)
+
+
+# -- the rubber and tissue laws (issue 21) -----------------------------------------------------------------
+STRETCH3 = (1.3, 0.9, 1.1)  # F = diag(a, b, c) of the unit cube: stretch, contraction and volume change J = 1.287
+C30, S30 = math.cos(math.pi / 6), math.sin(math.pi / 6)
+
+
+@dataclass(frozen=True)
+class NewLaw:
+    """A law of a case file: its keys (the fields of its parameter class), directions and closed-form stress."""
+
+    parameters: type
+    stress: Callable[..., Any]
+    keys: dict
+    directions: tuple[tuple[float, float, float], ...] = ()
+
+
+def _new_laws() -> dict[str, NewLaw]:
+    from hyperfem import materials as hm
+
+    # HGO: two families at +-30 degrees in the xy-plane; Weiss: fibres along x; Fung: a1 = y, a2 = z (a3 = x).
+    # Each set keeps P diagonal at F = diag(a, b, c), so that rollers on the six faces hold the homogeneous state.
+    hgo = (C30, S30, 0.0), (C30, -S30, 0.0)
+    return {
+        "yeoh": NewLaw(hm.YeohParameters, hm.yeoh_stress, {"c10": 2.0e5, "c20": -5.0e4, "c30": 2.0e4, "K": 2.0e6}),
+        "reduced_polynomial": NewLaw(
+            hm.ReducedPolynomialParameters,
+            hm.reduced_polynomial_stress,
+            {"coefficients": [2.0e5, -3.0e4, 1.0e4, 5.0e3], "K": 2.0e6},
+        ),
+        "gent": NewLaw(hm.GentParameters, hm.gent_stress, {"mu": 4.0e5, "Jm": 0.2, "K": 4.0e6}),
+        "arruda_boyce": NewLaw(
+            hm.ArrudaBoyceParameters, hm.arruda_boyce_stress, {"mu": 4.0e5, "lambda_m": 1.5, "K": 4.0e6}
+        ),
+        "veronda_westmann": NewLaw(
+            hm.VerondaWestmannParameters, hm.veronda_westmann_stress, {"c1": 2.0e4, "c2": 5.0, "K": 2.0e6}
+        ),
+        "holzapfel_gasser_ogden": NewLaw(
+            hm.HolzapfelGasserOgdenParameters,
+            hm.holzapfel_gasser_ogden_stress,
+            {"mu": 1.0e5, "k1": 2.0e5, "k2": 2.0, "kappa": 0.1, "K": 2.0e6},
+            hgo,
+        ),
+        "weiss": NewLaw(
+            hm.WeissParameters,
+            hm.weiss_stress,
+            {"c1": 1.0e5, "c2": 2.0e4, "c3": 5.0e3, "c4": 20.0, "c5": 5.0e6, "lambda_star": 1.05, "K": 2.0e6},
+            ((1.0, 0.0, 0.0),),
+        ),
+        "fung_orthotropic": NewLaw(
+            hm.FungOrthotropicParameters,
+            hm.fung_orthotropic_stress,
+            {"c": 1.0e4, "b1": 10.0, "b2": 5.0, "b3": 3.0, "b4": 1.0, "b5": 0.5, "b6": 0.8, "b7": 4.0, "b8": 3.0,
+             "b9": 2.0, "K": 2.0e6},
+            ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+        ),
+    }
+
+
+NEW_LAWS = _new_laws()
+
+
+def closed_form_stress(law: NewLaw, keys: dict, F: np.ndarray) -> np.ndarray:
+    """The law's closed-form ``*_stress`` at a constant ``F``, as numbers (one-cell Expression on ``COMM_SELF``)."""
+    import ufl
+    from dolfinx import fem
+    from dolfinx import mesh as dmesh
+
+    mesh = dmesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1)
+    params = law.parameters(**{k: tuple(v) if isinstance(v, list) else v for k, v in keys.items()})
+    P = law.stress(fem.Constant(mesh, F), *(ufl.as_vector(d) for d in law.directions), params)
+    expr = fem.Expression(P, np.array([[0.25, 0.25, 0.25]]))
+    return expr.eval(mesh, np.array([0], dtype=np.int32)).reshape(3, 3)
+
+
+def _toml(value: object) -> str:
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return repr(value)
+
+
+def _triaxial_case(folder: Path, law: str, keys: dict, mixed: bool) -> str:
+    """The unit cube on rollers on all six faces, x1, y1, z1 moved to F = diag(STRETCH3) in one load step."""
+    constants = "".join(f"{k} = {_toml(v)}\n" for k, v in keys.items())
+    rollers = "".join(_roller(f) for f in ("x0", "y0", "z0"))
+    rollers += "".join(_roller(f"{axis}1", s - 1.0) for axis, s in zip("xyz", STRETCH3, strict=True))
+    fibres = ""
+    for table, direction in zip(("fibres", "second_fibres"), NEW_LAWS[law].directions, strict=False):
+        fibres += f'[{table}]\ntype = "constant"\ndirection = {_toml(direction)}\n\n'
+    problem = '[problem]\nformulation = "mixed"\n\n' if mixed else ""
+    return (
+        f'[mesh]\nfile = "{folder / "cube.msh"}"\n\n{problem}[[material]]\nlaw = "{law}"\n{constants}\n{fibres}'
+        f"{rollers}\n[stepping]\nincrement = 1.0\n\n[solver]\natol = 1.0e-4\n\n"  # N: forces are 1e5 N
+        + QUIET.format(probes="[0.5, 0.5, 1.0]")
+    )
+
+
+def _run(folder: Path, name: str, text: str) -> dict:
+    """``hyperfem run`` of ``text`` in process."""
+    comm = MPI.COMM_WORLD
+    path = folder / f"{name}.toml"
+    if comm.rank == 0:
+        path.write_text(text)
+    comm.Barrier()
+    summary = dispatch(["run", str(path), "--output", str(folder / name / "run")])
+    assert summary["completed"], summary.get("error")
+    return summary
+
+
+TRIAXIAL = [
+    ("yeoh", {}, False),
+    ("yeoh", {}, True),
+    ("reduced_polynomial", {}, False),
+    ("gent", {}, False),
+    ("gent", {"lock_fraction": 0.5}, True),  # (I1bar - 3)/Jm = 0.68: on the quadratic continuation
+    ("arruda_boyce", {}, False),
+    ("veronda_westmann", {}, False),
+    ("holzapfel_gasser_ogden", {}, False),
+    ("holzapfel_gasser_ogden", {"switch": "stretch", "smoothing": 0.05}, True),
+    ("weiss", {}, False),  # the fibre stretch 1.195 > lambda_star: the linear branch with c6
+    ("fung_orthotropic", {"volumetric": "log"}, False),
+]
+
+
+def _triaxial_name(law: str, extra: dict, mixed: bool) -> str:
+    return "_".join([law, *(["mixed"] if mixed else []), *extra])
+
+
+@pytest.mark.parametrize("law, extra, mixed", TRIAXIAL, ids=[_triaxial_name(*case) for case in TRIAXIAL])
+def test_new_law_triaxial_stretch(law, extra, mixed, folder, capsys):
+    """F = diag(1.3, 0.9, 1.1) of a unit cube: the reaction of each moved face is the law's closed-form P_ii.
+
+    The rollers hold the homogeneous state because every direction set keeps P diagonal; P1 (P2-P1-P1 with
+    formulation = "mixed", where the volumetric part is U(theta) of the SplitEnergy) holds it exactly, so the
+    reactions are P_11, P_22, P_33 times the unit areas up to the Newton tolerance. The HGO case also runs its
+    ``--print-python`` script, which must give the same reactions.
+    """
+    keys = {**NEW_LAWS[law].keys, **extra}
+    name = f"triaxial_{_triaxial_name(law, extra, mixed)}"
+    text = _triaxial_case(folder, law, keys, mixed)
+    if law == "holzapfel_gasser_ogden" and not mixed:
+        summary = run_case(folder, name, text, capsys)
+    else:
+        summary = _run(folder, name, text)
+    P = closed_form_stress(NEW_LAWS[law], keys, np.diag(STRETCH3))
+    assert np.abs(P - np.diag(np.diag(P))).max() < 1e-9 * np.abs(P).max()  # diagonal: the rollers suffice
+    scale = np.abs(P).max()
+    for i, axis in enumerate("xyz"):
+        expected = np.zeros(3)
+        expected[i] = P[i, i]
+        np.testing.assert_allclose(_force(summary, f"{axis}1"), expected, rtol=0, atol=1e-6 * scale)
+        np.testing.assert_allclose(_force(summary, f"{axis}0"), -expected, rtol=0, atol=1e-6 * scale)
+    X = np.array([0.5, 0.5, 1.0])  # the top face's centre: its x and y displacements are free
+    np.testing.assert_allclose(summary["probe_displacement"][0], (np.array(STRETCH3) - 1.0) * X, rtol=0, atol=1e-9)
+
+
+# -- what a case file of these laws may not say ------------------------------------------------------------
+BAD_PARAMETERS = {
+    "yeoh": ({"c10": 0.0}, "material[0].c10: must be > 0, got 0.0"),
+    "reduced_polynomial": (
+        {"coefficients": [-1.0e5, 1.0e3]},
+        "material[0]: ReducedPolynomialParameters: coefficients[0] (C10) must be a finite number > 0, got -100000.0",
+    ),
+    "gent": ({"lock_fraction": 1.0}, "material[0].lock_fraction: must be < 1, got 1.0"),
+    "arruda_boyce": ({"lambda_m": 1.0}, "material[0].lambda_m: must be > 1, got 1.0"),
+    "veronda_westmann": ({"c2": -1.0}, "material[0].c2: must be > 0, got -1.0"),
+    "holzapfel_gasser_ogden": (
+        {"kappa": 0.5},
+        "material[0]: HolzapfelGasserOgdenParameters: kappa must be a number in [0, 1/3], got 0.5",
+    ),
+    "weiss": ({"lambda_star": 0.9}, "material[0].lambda_star: must be > 1, got 0.9"),
+    "fung_orthotropic": (
+        {"b4": 10.0},
+        "material[0]: FungOrthotropicParameters: the normal block [[b1, b4, b6], [b4, b2, b5], [b6, b5, b3]] must be "
+        "positive definite (Q > 0 for every nonzero strain), its eigenvalues are ",
+    ),
+}
+
+
+def _check_error(folder: Path, text: str) -> str:
+    from hyperfem.app.casefile import CaseFileError, check_case, parse_toml
+
+    with pytest.raises(CaseFileError) as info:
+        check_case(parse_toml(text), folder / "bad.toml")
+    message = str(info.value)
+    assert "\n" not in message
+    return message
+
+
+@pytest.mark.parametrize("law", list(BAD_PARAMETERS))
+def test_new_law_bad_parameter(law, folder):
+    """A value the law refuses is one line naming the entry: the key's range, or the parameter class's own check."""
+    change, expected = BAD_PARAMETERS[law]
+    text = _triaxial_case(folder, law, {**NEW_LAWS[law].keys, **change}, mixed=False)
+    assert f"bad.toml: {expected}" in _check_error(folder, text)
+
+
+def test_new_law_case_errors(folder):
+    """Unknown keys (did-you-mean), missing keys, missing or unused directions, non-orthogonal Fung axes."""
+    gent = _triaxial_case(folder, "gent", NEW_LAWS["gent"].keys, mixed=False)
+    typo = gent.replace("K = ", "lock_fracton = 0.9\nK = ")
+    expected = "material[0].lock_fracton: unknown key (did you mean 'lock_fraction'?); keys of a material with law"
+    assert expected in _check_error(folder, typo)
+    yeoh = _triaxial_case(folder, "yeoh", NEW_LAWS["yeoh"].keys, mixed=False)
+    assert "material[0]: missing required key 'c30'" in _check_error(folder, yeoh.replace("c30 = 20000.0\n", ""))
+
+    weiss = _triaxial_case(folder, "weiss", NEW_LAWS["weiss"].keys, mixed=False)
+    no_fibres = weiss.replace('[fibres]\ntype = "constant"\ndirection = [1.0, 0.0, 0.0]\n', "")
+    assert 'material[0]: law "weiss" needs fibre directions: add a [fibres] table' in _check_error(folder, no_fibres)
+    extra = weiss + '\n[second_fibres]\ntype = "constant"\ndirection = [0.0, 1.0, 0.0]\n'
+    assert "second_fibres: no material uses a second direction" in _check_error(folder, extra)
+
+    hgo = _triaxial_case(folder, "holzapfel_gasser_ogden", NEW_LAWS["holzapfel_gasser_ogden"].keys, mixed=False)
+    head, _, tail = hgo.partition("[second_fibres]")
+    no_second = head + tail[tail.index("[[bc]]") :]
+    message = _check_error(folder, no_second)
+    assert 'material[0]: law "holzapfel_gasser_ogden" needs a second direction, its family a02: add a ' in message
+    typo = head + "[second_fibres]" + tail.replace("direction", "directon", 1)
+    assert "second_fibres.directon: unknown key (did you mean 'direction'?)" in _check_error(folder, typo)
+
+    fung = _triaxial_case(folder, "fung_orthotropic", NEW_LAWS["fung_orthotropic"].keys, mixed=False)
+    skew = fung.replace("direction = [0.0, 0.0, 1.0]", "direction = [0.0, 0.6, 0.8]")
+    expected = 'second_fibres.direction: the axes of law "fung_orthotropic" must be orthogonal'
+    assert expected in _check_error(folder, skew)
+
+
+@pytest.mark.serial  # each run starts its own process
+@pytest.mark.parametrize("law", ["reduced_polynomial", "fung_orthotropic"])
+def test_new_law_bad_parameter_through_the_command(law, folder):
+    """``hyperfem run`` of a refused value: exit status 1, one line ``hyperfem: error: ...``, no traceback."""
+    import os
+    import subprocess
+    import sys
+
+    change, expected = BAD_PARAMETERS[law]
+    path = folder / f"bad_{law}.toml"
+    path.write_text(_triaxial_case(folder, law, {**NEW_LAWS[law].keys, **change}, mixed=False))
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "PMIX_", "HYDRA_", "MPIR_", "MPICH_"))}
+    env["PYTHONWARNINGS"] = "ignore"
+    result = subprocess.run(
+        [sys.executable, "-m", "hyperfem.app.main", "run", str(path), "--output", str(folder / f"bad_{law}")],
+        capture_output=True, text=True, timeout=240, env=env,
+    )
+    assert result.returncode == 1, (result.stdout, result.stderr)
+    assert "Traceback" not in result.stdout + result.stderr and result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"hyperfem: error: {path}: {expected}"), result.stderr
+
+
+def test_json_schema_knows_the_new_laws(folder):
+    """``hyperfem schema --json`` takes every case above, [second_fibres] included, and refuses the bad values
+    it can see (all but the reduced polynomial's C10 > 0 and Fung's positive definite block)."""
+    jsonschema = pytest.importorskip("jsonschema")
+    from hyperfem.app.casefile import parse_toml
+    from hyperfem.app.reference import json_schema
+
+    validator = jsonschema.Draft202012Validator(json_schema())
+    for law, extra, mixed in TRIAXIAL:
+        data = parse_toml(_triaxial_case(folder, law, {**NEW_LAWS[law].keys, **extra}, mixed))
+        assert [e.message for e in validator.iter_errors(data)] == [], law
+    for law, (change, _) in BAD_PARAMETERS.items():
+        data = parse_toml(_triaxial_case(folder, law, {**NEW_LAWS[law].keys, **change}, mixed=False))
+        assert validator.is_valid(data) == (law in ("reduced_polynomial", "fung_orthotropic")), law
