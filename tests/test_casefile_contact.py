@@ -586,3 +586,62 @@ def test_friction_of_a_tool_reaches_the_script_and_the_columns(shared_tmp):
     assert "friction=0.2" in script(case)
     rows = build(case).simulation.run()["rows"]
     assert "contact_friction_force" in rows[-1]
+
+
+# -- a tool's path through waypoints -------------------------------------------------------------------------------
+RESTING = TOOL.replace("value = [-0.2]", "value = [0.0]")
+
+
+def _braces(keys: str) -> str:
+    """TOML inline tables in the case template (a str.format template)."""
+    return keys.replace("{", "{{").replace("}", "}}")
+
+
+def _tool_run(folder: Path, keys: str) -> tuple[str, list[dict]]:
+    case = load_case(_write_tool(folder, RESTING.replace("dhat = 1e-3", f"dhat = 1e-3\n{_braces(keys)}", 1)),
+                     output=folder / "out")
+    text = script(case)
+    summary = build(case).simulation.run()
+    assert summary["completed"]
+    return text, summary["rows"]
+
+
+def test_tool_path_equals_motion_and_slides_without_friction(shared_tmp):
+    """``path = {times, points}`` (hf.loading.Waypoints): the plate pushed up 0.1 into the resting block by a path
+    equals the same push by ``motion`` (to round-off; 4 steps: the block's bottom is carried by the predictor, as the
+    thin plate would pass through it); pushed, then slid 0.2 sideways, the frictionless plate presses with the same
+    normal force to 6e-5 and a lateral force of 7e-5 of it (measured: the edge-edge pairs of a plate whose diagonal
+    is parallel to the block's x = y edges, see tests/test_contact_surfaces.py)."""
+    text, by_path = _tool_run(shared_tmp, "path = {times = [0.0, 1.0], points = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]]}")
+    assert "motion=Waypoints(times=(0.0, 1.0), points=((0.0, 0.0, 0.0), (0.0, 0.0, 0.1)))" in " ".join(text.split())
+    compile(text, "block_on_tool.py", "exec")
+    _, by_motion = _tool_run(shared_tmp, "motion = [0.0, 0.0, 0.1]")
+    for a, b in zip(by_path[1:], by_motion[1:], strict=True):
+        assert a["contact_force"] == pytest.approx(b["contact_force"], rel=1e-10, abs=1e-14)
+    pushed = by_path[-1]["contact_force"]
+    assert pushed[2] > 0.05
+    _, slid = _tool_run(shared_tmp, "path = {times = [0.0, 0.5, 1.0], points = "
+                                    "[[0.0, 0.0, 0.0], [0.0, 0.0, 0.1], [0.2, 0.0, 0.1]]}")
+    assert len(by_path) == len(slid) == 5  # the start and 4 steps
+    assert slid[-1]["contact_force"][2] == pytest.approx(pushed[2], rel=1e-3)
+    assert abs(slid[-1]["contact_force"][0]) < 1e-3 * pushed[2]
+
+
+@pytest.mark.parametrize(
+    "keys, expected",
+    [
+        ("path = {times = [0.0, 1.0], points = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]]}\nmotion = [0.0, 0.0, 0.1]",
+         "contact[0].path: give either path or motion, not both"),
+        ("path = {times = [0.0, 1.0], points = [[0.0, 0.0], [0.0, 0.1]]}",
+         "contact[0].path.points: one [x, y, z] per time"),
+        ("path = {times = [1.0, 0.0], points = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]]}",
+         "contact[0].path: times must increase strictly, got [1.0, 0.0]"),
+        ("path = {times = [0.0, 1.0]}", "contact[0].path: missing required key 'points'"),
+        ("path = [0.0, 1.0]", "contact[0].path: expected a table, got an array of 2"),
+    ],
+)
+def test_bad_tool_paths_are_one_line(shared_tmp, keys, expected):
+    with pytest.raises(CaseFileError) as info:
+        load_case(_write_tool(shared_tmp, TOOL.replace("dhat = 1e-3", f"dhat = 1e-3\n{_braces(keys)}", 1)))
+    message = str(info.value)
+    assert expected in message and "\n" not in message

@@ -47,7 +47,17 @@ from hyperfem.contact import (
 )
 from hyperfem.fibres import constant_fibres, fibres_from_file, laplace_fibres
 from hyperfem.io import ensure_output_dir
-from hyperfem.loading import Activation, AffineField, Ramp, Scaled, Steady, Table, linear_profile, rotating_surface
+from hyperfem.loading import (
+    Activation,
+    AffineField,
+    Ramp,
+    Scaled,
+    Steady,
+    Table,
+    Waypoints,
+    linear_profile,
+    rotating_surface,
+)
 from hyperfem.materials import (
     ARAP,
     ArrudaBoyceParameters,
@@ -333,7 +343,9 @@ def model_hash(case: Case) -> str:
     """
     model: list[object] = [case.mesh, case.problem, case.materials, case.fibres, case.bcs, case.loads]
     if case.contacts:  # (cases without contact keep the hash they had before contact existed)
-        model.append(case.contacts)
+        # (and contacts without a path the hash they had before paths existed)
+        model.append([{k: v for k, v in dataclasses.asdict(c).items() if k != "path" or v is not None}
+                      for c in case.contacts])
     if case.second_fibres is not None:  # (likewise the cases without a second direction)
         model.append(case.second_fibres)
     text = json.dumps(_plain(tuple(model)), sort_keys=True, default=str)
@@ -351,7 +363,7 @@ def must_hit_times(case: Case) -> list[float]:
     t_end = float(st.options["t_end"])
     profiles = [bc.profile for bc in case.bcs] + [ld.profile for ld in case.loads]
     profiles += [m.activation for m in case.materials if isinstance(m.activation, Profile)]
-    profiles += [c.profile for c in case.contacts]
+    profiles += [c.profile for c in case.contacts] + [c.path for c in case.contacts]
     times = set(st.options.get("must_hit", ()))
     times |= {t for p in profiles if p is not None for t in p.kinks}
     times |= set(case.output.times or ())
@@ -540,6 +552,8 @@ def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
         kwargs["file"] = _path(case, contact.file)
         if contact.motion is not None:
             kwargs["motion"] = contact.motion
+        if contact.path is not None:
+            kwargs["motion"] = Call.of(Waypoints, times=contact.path.times, points=contact.path.points)
         profile = _profile(contact.profile)
         if profile is not None:
             kwargs["profile"] = profile

@@ -105,7 +105,8 @@ LAYOUT: dict[str, Table] = {
     "second_fibres": Table("second_fibres", S.FIBRE_COMMON, on="type", variants=_by_type(S.FIBRES)),
     "bc": Table("bc", S._BC_COMMON, array=True, on="type", variants=_by_type(S.BCS)),
     "load": Table("load", S._LOAD_COMMON, array=True, on="type", variants=_by_type(S.LOADS)),
-    "contact": Table("contact", S._CONTACT_COMMON, array=True, on="type", variants=_by_type(S.CONTACTS)),
+    "contact": Table("contact", S._CONTACT_COMMON, array=True, on="type", variants=_by_type(S.CONTACTS),
+                     tables={"path": Table("contact.path", S.WAYPOINTS)}),
     "stepping": Table(
         "stepping",
         {"type": S.QUASI_STATIC["type"]},

@@ -48,6 +48,7 @@ from hyperfem.app.spec import (
     SteppingSpec,
 )
 from hyperfem.errors import ParameterError
+from hyperfem.loading.motion import Waypoints
 from hyperfem.materials import (
     ArrudaBoyceParameters,
     FungOrthotropicParameters,
@@ -497,6 +498,8 @@ CONTACTS = {
         "motion": Key("vector", length=3, example=(0.0, 0.0, -0.3),
                       help="translation of the tool in m at f = 1 (a moving tool); default none"),
         "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
+        "path": Key("table", help="instead of motion and profile: the tool's translation through waypoints "
+                    "(hf.loading.Waypoints: piecewise linear, held at its ends)"),
         "offset": Key("vector", length=3, example=(0.0, 0.0, 1.0),
                       help="translation applied once to the file's points in m (placing the tool); default none"),
         "scale": Key("number", above=0.0, default=1.0,
@@ -539,6 +542,14 @@ LOADS = {
         "profile": _PROFILE,
     },
 }
+WAYPOINTS = {
+    "times": Key("numbers", required=True, example=(0.0, 0.5, 1.0),
+                 help="strictly increasing times (load factors or s), at least 2"),
+    "points": Key("matrix", required=True, example=((0.0, 0.0, 0.0), (0.0, 0.0, -0.1), (0.4, 0.0, -0.1)),
+                  help="the translation in m at each time, one [x, y, z] per time"),
+}
+"""Keys of a tool's ``path`` table: :class:`~hyperfem.loading.Waypoints`."""
+
 AFFINE = {
     "matrix": Key("matrix", required=True, example=((0.0, 0.0, 0.0), (0.0, 0.0, 5.0e3), (0.0, -5.0e3, 0.0)),
                   help="the square matrix A, one row per component"),
@@ -1220,10 +1231,14 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
         if not path.is_file():
             raise CaseFileError(f"{where}.file: tool surface file not found: {path}")
     profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    path_ = None
+    if "path" in values:
+        path_ = _waypoints(values, join(where, "path"))
     return ContactSpec(
         key=where,
         type=kind,
         boundaries=tuple(names),
+        path=path_,
         file=path,
         dhat=values.get("dhat"),
         stiffness=values.get("stiffness"),
@@ -1237,6 +1252,22 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
         friction=values.get("friction", 0.0),
         friction_epsilon=values.get("friction_epsilon"),
     )
+
+
+def _waypoints(values: Mapping, where: str) -> Waypoints:
+    """A tool's ``path = {times, points}`` (not with ``motion`` or ``profile``)."""
+    for other in ("motion", "profile"):
+        if other in values:
+            raise CaseFileError(f"{where}: give either path or {other}, not both")
+    if not isinstance(values["path"], Mapping):
+        raise CaseFileError(f"{where}: expected a table {{times, points}}, got {describe(values['path'])}")
+    table = check_table(values["path"], WAYPOINTS, where, what="a path (waypoints)")
+    if any(len(row) != 3 for row in table["points"]):
+        raise CaseFileError(f"{where}.points: one [x, y, z] per time, got rows of {[len(r) for r in table['points']]}")
+    try:
+        return Waypoints(table["times"], table["points"])
+    except ParameterError as exc:
+        raise CaseFileError(f"{where}: {str(exc).removeprefix('Waypoints: ')}") from None
 
 
 def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:

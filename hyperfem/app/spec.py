@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hyperfem.loading.motion import Waypoints
+
 __all__ = [
     "FIBRE_LAWS",
     "LAME_LAWS",
@@ -242,6 +244,7 @@ class ContactSpec:
         stiffness: Barrier stiffness, or ``None`` (the library default).
         motion: Translation of the obstacle at profile 1, or ``None`` (it stays).
         profile: Time profile of the motion, or ``None`` (linear).
+        path: A tool's translation through waypoints (instead of motion and profile), or ``None``.
         center: The sphere's centre (at profile 0); ``None`` for a plane.
         radius: The sphere's or cylinder's radius; ``None`` for a plane.
         axis: The cylinder's axis direction; ``None`` otherwise.
@@ -270,6 +273,7 @@ class ContactSpec:
     name: str | None = None
     tolerance: float | None = None
     axis: tuple[float, ...] | None = None
+    path: Waypoints | None = None
 
 
 @dataclass(frozen=True)

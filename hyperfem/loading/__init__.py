@@ -4,7 +4,8 @@
   and prescribed displacements (:func:`linear_profile`, :class:`Steady`,
   :class:`Ramp`, :class:`Table`, :class:`Scaled`);
 * :mod:`~hyperfem.loading.motion` — prescribed rigid motions of a surface
-  (:func:`rotating_surface`, :class:`RigidRotation`, :func:`rotation_matrix`);
+  (:func:`rotating_surface`, :class:`RigidRotation`, :func:`rotation_matrix`)
+  and translation paths of an obstacle (:class:`Waypoints`);
 * :mod:`~hyperfem.loading.fields` — vector fields of the coordinates for loads
   (:class:`AffineField`);
 * :mod:`~hyperfem.loading.activation` — muscle activation per region
@@ -18,7 +19,7 @@
 
 from hyperfem.loading.activation import Activation
 from hyperfem.loading.fields import AffineField
-from hyperfem.loading.motion import RigidRotation, rotating_surface, rotation_matrix
+from hyperfem.loading.motion import RigidRotation, Waypoints, rotating_surface, rotation_matrix
 from hyperfem.loading.profiles import Ramp, Scaled, Steady, Table, linear_profile
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "Scaled",
     "Steady",
     "Table",
+    "Waypoints",
     "linear_profile",
     "rotating_surface",
     "rotation_matrix",

@@ -1,7 +1,8 @@
 r"""Prescribed rigid motions of a named surface.
 
-A rigid rotation of a surface about an axis, by an angle that follows a time
-profile (:mod:`hyperfem.loading.profiles`):
+A translation path through waypoints (:class:`Waypoints`: a tool that
+indents, then drags), and a rigid rotation of a surface about an axis, by an
+angle that follows a time profile (:mod:`hyperfem.loading.profiles`):
 
 .. math::
     u(X, t) = R\bigl(\theta(t)\,\hat a\bigr)(X - c) + c - X,
@@ -13,6 +14,7 @@ with :math:`R` the rotation by angle :math:`\theta(t)` about the unit axis
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -26,7 +28,7 @@ from hyperfem.validation import is_finite_number
 if TYPE_CHECKING:
     from hyperfem.problem.boundary_conditions import PrescribedDisplacement
 
-__all__ = ["RigidRotation", "rotating_surface", "rotation_matrix"]
+__all__ = ["RigidRotation", "Waypoints", "rotating_surface", "rotation_matrix"]
 
 
 def rotation_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
@@ -98,3 +100,47 @@ def rotating_surface(
     from hyperfem.problem.boundary_conditions import PrescribedDisplacement
 
     return PrescribedDisplacement(boundary, RigidRotation(tuple(axis), angle, tuple(center)))
+
+
+@dataclass(frozen=True)
+class Waypoints:
+    r"""A translation path, piecewise linear through ``(times[k], points[k])`` and held at its ends.
+
+    A moving obstacle's ``motion`` (e.g. :class:`~hyperfem.contact.ToolContact`): a probe pressed
+    down by :math:`\delta` until :math:`t = 1/2`, then dragged along :math:`x` by :math:`L`, is
+    ``Waypoints(times=(0, 0.5, 1), points=((0, 0, 0), (0, 0, -delta), (L, 0, -delta)))``.
+
+    Attributes:
+        times: Strictly increasing times (load factors or s), at least 2.
+        points: The translation at those times, one vector (2 or 3 components) per time.
+    """
+
+    times: Sequence[float]
+    points: Sequence[Sequence[float]]
+
+    def __post_init__(self) -> None:
+        t = list(self.times)
+        try:
+            x = np.asarray(self.points, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterError(f"Waypoints: points must be equal-length vectors, got {self.points!r}") from None
+        if len(t) < 2 or x.ndim != 2 or len(x) != len(t) or x.shape[1] not in (2, 3):
+            raise ParameterError(
+                f"Waypoints: need one 2- or 3-vector per time (at least 2), got {len(t)} times and points of shape "
+                f"{x.shape}"
+            )
+        if not all(is_finite_number(v) for v in t) or not np.all(np.isfinite(x)):
+            raise ParameterError("Waypoints: times and points must be finite numbers")
+        if any(b <= a for a, b in itertools.pairwise(t)):
+            raise ParameterError(f"Waypoints: times must increase strictly, got {t}")
+        object.__setattr__(self, "times", tuple(float(v) for v in t))
+        object.__setattr__(self, "points", tuple(tuple(float(v) for v in row) for row in x))
+
+    def __call__(self, t: float) -> np.ndarray:
+        x = np.asarray(self.points)
+        return np.array([np.interp(float(t), self.times, x[:, k]) for k in range(x.shape[1])])
+
+    @property
+    def kinks(self) -> tuple[float, ...]:
+        """Times where the path turns (every waypoint's time)."""
+        return tuple(self.times)

@@ -672,8 +672,9 @@ class NewtonSolver:
         if self.external:
             self.external.pull_back()
         carried = None
-        if self.external and self.predictor and self.external.refusal():
-            # An obstacle moved into the body: carry the nodes it overran in the predictor's tangent solve.
+        if self.external and self.predictor and (self.external.refusal() or self.external.sweep_refusal()):
+            # An obstacle moved into the body (or, a thin tool, through the part of it that may touch): carry the
+            # nodes it overran in the predictor's tangent solve.
             carried = self.external.carry()
         admissible = carried is not None or not (self.external and self.external.refusal())
         moved = carried is not None or self._boundary_predictor.moved()
