@@ -12,6 +12,7 @@
     hyperfem plot OUTPUT_FOLDER
     hyperfem render CASE.toml [--checkpoint PATH] [-o OUT.png] [--scalars NAME] [--set KEY=VALUE ...]
     hyperfem convert IN OUT.msh [--reorient] [--tags NAME] [--names TAG=NAME,...]
+    hyperfem fit DATA.csv --law LAW [--terms N] [--modes MODE,...] [--json] [--png FIT.png] (hyperfem.app.fit)
     hyperfem --version
 
 Every command runs under ``mpiexec -n N`` (mesh generation and conversion on
@@ -34,6 +35,7 @@ from typing import Any, TextIO, TypeVar
 
 from mpi4py import MPI
 
+from hyperfem.app.fit import add_fit_parser, fit_command
 from hyperfem.app.program import ArgumentParser, positive_float, positive_int, run, unit_interval
 from hyperfem.errors import HyperfemError, ParameterError
 
@@ -96,6 +98,7 @@ def make_parser() -> ArgumentParser:
     _add_render_parser(sub)
     _add_quality_parser(sub)
     _add_convert_parser(sub)
+    add_fit_parser(sub)
     return p
 
 
@@ -566,6 +569,7 @@ COMMANDS = {
     "plot": _plot,
     "render": _render_picture,
     "convert": _convert,
+    "fit": fit_command,
 }
 
 

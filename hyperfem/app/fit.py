@@ -1,0 +1,114 @@
+"""``hyperfem fit``: a law's parameters fitted to homogeneous test data.
+
+.. code-block:: text
+
+    hyperfem fit DATA.csv --law LAW [--terms N] [--modes uniaxial,equibiaxial,pure_shear]
+                 [--bulk-modulus K] [--volumetric log] [--weighting relative|absolute] [--json] [--png FIT.png]
+
+DATA.csv has the columns ``mode,stretch,nominal_stress_MPa`` (the format of
+:func:`hyperfem.materials.fitting.read_curves`). The command prints the
+parameters, the rms and relative errors per mode, Drucker's stability over the
+data range and a ``[[material]]`` table (moduli in Pa) to paste into a case file;
+``--json`` prints ``{"law", "parameters", "rms_MPa", "stable", ...}`` instead.
+Every rank fits (each on its own, ``MPI.COMM_SELF``: the same numbers); rank 0
+prints and draws.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from mpi4py import MPI
+
+from hyperfem.app.program import positive_float, positive_int
+
+__all__ = ["add_fit_parser", "fit_command"]
+
+PA_PER_MPA = 1e6
+"""The case-file table is in Pa (consistent with meshes in m); the data are in MPa."""
+
+
+def add_fit_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``hyperfem fit`` to the subcommands."""
+    from hyperfem.materials.fitting import FIT_LAWS
+    from hyperfem.materials.homogeneous import MODES
+    from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
+
+    f = sub.add_parser(
+        "fit",
+        help="fit a law's parameters to homogeneous test data (CSV)",
+        description="Least-squares fit of a hyperelastic law to homogeneous test data: the response is the law's own "
+        "UFL energy (incompressible unless --bulk-modulus is given or the data have volumetric points). Prints the "
+        "parameters, the rms and relative errors per mode, Drucker stability over the data range and a "
+        "[[material]] table (Pa) to paste into a case file.",
+        epilog="DATA.csv: a header with the columns mode,stretch,nominal_stress_MPa (others ignored); mode one of "
+        f"{', '.join(MODES)}; stretch the stretch along the load (volumetric: J^(1/3)); nominal_stress_MPa the "
+        "first Piola-Kirchhoff stress P11 in MPa (force per undeformed area). Example: hyperfem fit "
+        "hyperfem/materials/data/treloar1944.csv --law ogden --terms 3 --png fit.png",
+    )
+    f.add_argument("data", type=Path, help="CSV file of test data (columns mode,stretch,nominal_stress_MPa)")
+    f.add_argument("--law", required=True, metavar="LAW", help=f"the law: {', '.join(FIT_LAWS)}")
+    f.add_argument("--terms", type=positive_int, default=None, metavar="N",
+                   help="number of terms of ogden and reduced_polynomial (default 3)")
+    f.add_argument("--modes", default=None, metavar="MODE,...",
+                   help="the modes to fit, comma-separated (default: every mode of the data)")
+    f.add_argument("--bulk-modulus", type=positive_float, default=None, metavar="K",
+                   help="fixed bulk modulus in MPa: a compressible fit (default: incompressible, or K fitted to "
+                   "volumetric data)")
+    f.add_argument("--volumetric", choices=tuple(VOLUMETRIC_LAWS), default="log",
+                   help="the volumetric energy U(J) of a compressible fit and of the table (default log)")
+    f.add_argument("--weighting", choices=("relative", "absolute"), default="relative",
+                   help="residuals relative to each data stress (default) or absolute")
+    f.add_argument("--json", action="store_true", help="print the result as JSON")
+    f.add_argument("--png", type=Path, default=None, metavar="FIT.png", help="draw data and fit per mode to this PNG")
+
+
+def fit_command(args: argparse.Namespace) -> dict[str, Any]:
+    """Run ``hyperfem fit``; returns the JSON summary."""
+    from hyperfem.app.spec import LAWS
+    from hyperfem.errors import HyperfemError, OutputError
+    from hyperfem.materials.fitting import fit, plot_fits, read_curves
+
+    comm = MPI.COMM_WORLD
+    curves = read_curves(args.data)
+    modes = None if args.modes is None else [m.strip() for m in args.modes.split(",") if m.strip()]
+    result = fit(
+        args.law,
+        curves,
+        terms=args.terms,
+        modes=modes,
+        bulk_modulus=args.bulk_modulus,
+        volumetric=args.volumetric,
+        weighting=args.weighting,
+    )
+    summary = result.to_json()
+    failure = None
+    if args.png is not None:
+        summary["png"] = str(args.png)
+        if comm.rank == 0:
+            try:
+                if not args.png.parent.is_dir():
+                    raise OutputError(f"fit: no folder {args.png.parent} for the PNG")
+                plot_fits([result], args.png, title=f"{result.label} fitted to {args.data.name}")
+            except HyperfemError as exc:
+                failure = (type(exc), str(exc))
+        failure = comm.bcast(failure, root=0)
+        if failure is not None:
+            raise failure[0](failure[1])
+    if comm.rank == 0:
+        if args.json:
+            print(json.dumps(summary, indent=2), flush=True)
+        else:
+            counts = ", ".join(f"{m} {c.stretch.size}" for m, c in result.data.items())
+            lines = [f"{args.data}: {sum(c.stretch.size for c in result.data.values())} points ({counts})",
+                     result.summary(), "", "# paste into a case file:"]
+            if result.law not in LAWS:
+                lines.append(f'# (case files do not read law = "{result.law}" yet)')
+            lines.append(result.case_table(stress_factor=PA_PER_MPA).rstrip("\n"))
+            if args.png is not None:
+                lines.append(f"wrote {args.png}")
+            print("\n".join(lines), flush=True)
+    return summary
