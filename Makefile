@@ -83,6 +83,7 @@ demos: bootstrap
 	$(PY) demos/surgery.py
 	$(PY) demos/two_beams.py
 	$(PY) demos/glued_bar.py
+	$(PY) demos/fold.py
 	$(PY) demos/fit_treloar.py
 
 test: bootstrap

@@ -206,6 +206,25 @@ def test_surgery_demo(shared_tmp, capsys):
         assert "intersecting: False" in capsys.readouterr().out
 
 
+FOLD_END_REACTION = [3.504492021e-05, -2.07522102e-06, -4.6883732946e-04]  # default run, 1 rank (= 2 ranks, 1e-16)
+FOLD_ON_LYING_HALF = [-7.000710e-06, -7.71036e-07, -3.392525281e-04]
+
+
+def test_fold_demo(shared_tmp, capsys):
+    """Self-contact (issue 19): a strip folded onto itself on a table. The fold's pairs are internal (their forces
+    sum to zero), the table balances the clamp and end reactions (to the solver's tolerance), nothing intersects and
+    every gap stays positive; the regression forces from a trusted run (1 rank = 2 ranks)."""
+    pytest.importorskip("ipctk")
+    result = load_demo("fold").main(["--output", str(shared_tmp)])
+    assert result["completed"] and result["time"][-1] == 1.0 and result["self_pairs"] > 0
+    assert result["self_force_sum"] < 1e-12 and result["balance"] < 1e-6
+    assert not result["intersecting"] and result["min_distance"] > 0.0 and result["table_min_distance"] > 0.0
+    assert result["end_reaction"] == pytest.approx(FOLD_END_REACTION, rel=1e-6, abs=1e-10)
+    assert result["fold_force_on_lying_half"] == pytest.approx(FOLD_ON_LYING_HALF, rel=1e-5, abs=1e-10)
+    if MPI.COMM_WORLD.rank == 0:
+        assert "intersecting: False" in capsys.readouterr().out
+
+
 FORCE_TWO_BEAMS = [-1.7791829204e-05, 1.5272480346e-04, 5.088108503e-07]  # default run, 1 rank (= 2 ranks to 1e-16)
 
 
