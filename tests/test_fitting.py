@@ -199,6 +199,16 @@ def test_fit_recovers_compressible_parameters():
     np.testing.assert_allclose([fixed.parameters["c1"], fixed.parameters["c2"]], truth[:2], rtol=1e-8)
 
 
+def test_unstable_fit_says_where():
+    """Veronda-Westmann (a skin law) on Treloar: its -c1 c2/2 (I2bar - 3) term loses Drucker stability early."""
+    result = fit("veronda_westmann", treloar_data())
+    assert not result.stable and result.to_json()["stable"] is False
+    lost = {s.mode: s.stretch for s in result.stability_lost}
+    assert lost.keys() == set(INCOMPRESSIBLE)
+    np.testing.assert_allclose([lost[m] for m in INCOMPRESSIBLE], [1.462, 1.242, 1.397], atol=0.05)
+    assert "Drucker stability lost: uniaxial at stretch 1.4" in result.summary()
+
+
 def test_fit_refuses_bad_requests():
     data = treloar_data()
     cases = [
@@ -294,6 +304,15 @@ def test_cli_fit_json_and_png(shared_tmp, capsys):
         out = capsys.readouterr().out
         assert "Drucker stable over the data range" in out and 'law = "mooney_rivlin"' in out
         assert "rms [MPa]" in out and "pure_shear       14" in out
+
+
+def test_cli_fit_help(capsys):
+    with pytest.raises(SystemExit) as exc:
+        dispatch(["fit", "--help"])
+    assert exc.value.code == 0
+    if MPI.COMM_WORLD.rank == 0:
+        out = capsys.readouterr().out
+        assert out.startswith("usage: hyperfem fit") and "mode,stretch,nominal_stress_MPa" in out
 
 
 CLI_ERRORS = {
