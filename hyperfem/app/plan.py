@@ -361,7 +361,8 @@ def must_hit_times(case: Case) -> list[float]:
     """Must-hit times of a dynamic run: given ones, profile kinks and VTX output times in (0, t_end)."""
     st = case.stepping
     t_end = float(st.options["t_end"])
-    profiles = [bc.profile for bc in case.bcs] + [ld.profile for ld in case.loads]
+    profiles: list[Profile | Waypoints | None] = [bc.profile for bc in case.bcs]
+    profiles += [ld.profile for ld in case.loads]
     profiles += [m.activation for m in case.materials if isinstance(m.activation, Profile)]
     profiles += [c.profile for c in case.contacts] + [c.path for c in case.contacts]
     times = set(st.options.get("must_hit", ()))
