@@ -11,6 +11,9 @@ says which energies tolerate inverted elements.
 
 The fibre-reinforced laws (muscle, Holzapfel–Gasser–Ogden, Weiss, Fung orthotropic)
 take their reference directions after the deformation gradient: ``psi(F, a0, ..., params)``.
+
+The principal-stretch laws (Ogden, Hencky, Saint Venant–Kirchhoff in stretches) are built on
+:func:`eigenvalue_sum` of :mod:`~hyperfem.materials.principal_stretches`, exact where stretches coincide.
 """
 
 from hyperfem.materials.linear_elastic import linear_elastic, linear_elastic_stress
@@ -194,4 +197,40 @@ __all__ += [
     "yeoh",
     "yeoh_isochoric",
     "yeoh_stress",
+]
+
+from hyperfem.materials.ogden import (  # noqa: E402
+    CONVENTIONS,
+    OgdenParameters,
+    ogden,
+    ogden_equibiaxial_stress,
+    ogden_isochoric,
+    ogden_pure_shear_stress,
+    ogden_uniaxial_stress,
+)
+from hyperfem.materials.principal_stretches import (  # noqa: E402
+    SpectralInvariants,
+    eigenvalue_power_sum,
+    eigenvalue_sum,
+    hencky,
+    saint_venant_kirchhoff_principal,
+    spectral_invariants,
+    volume_preservation,
+)
+
+__all__ += [
+    "CONVENTIONS",
+    "OgdenParameters",
+    "SpectralInvariants",
+    "eigenvalue_power_sum",
+    "eigenvalue_sum",
+    "hencky",
+    "ogden",
+    "ogden_equibiaxial_stress",
+    "ogden_isochoric",
+    "ogden_pure_shear_stress",
+    "ogden_uniaxial_stress",
+    "saint_venant_kirchhoff_principal",
+    "spectral_invariants",
+    "volume_preservation",
 ]
