@@ -99,14 +99,22 @@ class SplitEnergy:
         bulk_modulus: :math:`K > 0`.
         volumetric: Volumetric law name (any of
             :data:`~hyperfem.materials.volumetric.VOLUMETRIC_LAWS`).
+        shear_modulus: The small-strain shear modulus of the isochoric part where it is known
+            (``OgdenParameters.shear_modulus``), or ``None``: then
+            :meth:`MixedHyperelasticProblem.reference_shear_moduli` derives it from
+            :math:`\partial^2\psi_\text{iso}/\partial F^2` at :math:`I`, a form to compile (about 20 s
+            for three Ogden terms).
     """
 
     isochoric: Callable[[Expr], Expr]
     bulk_modulus: float
     volumetric: str = "log"
+    shear_modulus: float | None = None
 
     def __post_init__(self) -> None:
         check_positive("bulk_modulus", self.bulk_modulus, "SplitEnergy")
+        if self.shear_modulus is not None:
+            check_positive("shear_modulus", self.shear_modulus, "SplitEnergy")
         check_energy_callable(self.isochoric, "SplitEnergy isochoric part")
         volumetric_law(self.volumetric)
 
@@ -270,7 +278,8 @@ class MixedHyperelasticProblem(EnergyProblem):
         (:math:`n = 5` in 3D, 2 in 2D), averaged over the region (fibre fields
         make it vary). Exact for an isotropic law (:math:`\mu` of its
         linearisation), the mean over shear modes for an anisotropic one.
-        Collective; each region's small form is compiled on first use.
+        Collective; each region's small form is compiled on first use, unless its
+        :class:`SplitEnergy` gives its ``shear_modulus``, which is taken as it is.
         """
         if self._shear_moduli is None:
             d = self.domain.gdim
@@ -279,6 +288,9 @@ class MixedHyperelasticProblem(EnergyProblem):
             i, j, p, q = ufl.indices(4)
             moduli: dict[str | None, float] = {}
             for name, m in self._regions.items():
+                if m.shear_modulus is not None:
+                    moduli[name] = float(m.shear_modulus)
+                    continue
                 A = ufl.diff(ufl.diff(m.isochoric(F), F), F)
                 two_mu = sum(ufl.as_matrix(D)[i, j] * A[i, j, p, q] * ufl.as_matrix(D)[p, q] for D in basis)
                 two_mu = two_mu / len(basis)
