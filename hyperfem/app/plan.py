@@ -69,6 +69,7 @@ from hyperfem.materials import (
     LameParameters,
     MooneyRivlinParameters,
     MuscleParameters,
+    OgdenParameters,
     ReducedPolynomialParameters,
     VerondaWestmannParameters,
     WeissParameters,
@@ -79,16 +80,20 @@ from hyperfem.materials import (
     fung_orthotropic_isochoric,
     gent,
     gent_isochoric,
+    hencky,
     holzapfel_gasser_ogden,
     holzapfel_gasser_ogden_isochoric,
     linear_elastic,
     muscle,
     muscle_isochoric,
     neo_hookean,
+    ogden,
+    ogden_isochoric,
     reduced_polynomial,
     reduced_polynomial_isochoric,
     robust_neo_hookean,
     saint_venant_kirchhoff,
+    saint_venant_kirchhoff_principal,
     stable_neo_hookean,
     veronda_westmann,
     veronda_westmann_isochoric,
@@ -223,6 +228,8 @@ _ENERGIES = {
     "saint_venant_kirchhoff": saint_venant_kirchhoff,
     "linear_elastic": linear_elastic,
     "stable_neo_hookean": stable_neo_hookean,
+    "hencky": hencky,
+    "saint_venant_kirchhoff_principal": saint_venant_kirchhoff_principal,
 }
 """The energy ψ(F, params) of each isotropic law without a polar rotation."""
 
@@ -281,7 +288,8 @@ _LAWS = {
         FungOrthotropicParameters, fung_orthotropic, fung_orthotropic_isochoric, ("fibres", "second_fibres")
     ),
 }
-"""The rubber and tissue laws (:data:`~hyperfem.app.spec.RUBBER_LAWS`, :data:`~hyperfem.app.spec.TISSUE_LAWS`)."""
+"""The rubber and tissue laws (:data:`~hyperfem.app.spec.RUBBER_LAWS`, :data:`~hyperfem.app.spec.TISSUE_LAWS`)
+but ``ogden``, whose coefficients may be written in another code's convention (:func:`_material`)."""
 
 
 def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> list[Statement]:
@@ -300,6 +308,14 @@ def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> l
         bound = (*(Ref(d) for d in law.directions), Ref(params))
         iso = Energy(law.isochoric, bound)
         whole = Energy(law.energy, bound) if law.directions else Call.of(with_parameters, law.energy, Ref(params))
+    elif m.law == "ogden":  # Ogden's mu_p as given, else FEBio's or Abaqus's coefficients converted
+        if kwargs.get("convention", "ogden") == "ogden":
+            kwargs.pop("convention", None)
+            out = [Statement(m.key, params, Call.of(OgdenParameters, **kwargs))]
+        else:
+            out = [Statement(m.key, params, Call.of(OgdenParameters.from_convention, **kwargs))]
+        iso = Energy(ogden_isochoric, (Attr(Ref(params), "mu"), Attr(Ref(params), "alpha")))
+        whole = Call.of(with_parameters, ogden, Ref(params))
     elif m.law == "mooney_rivlin":
         out = [Statement(m.key, params, Call.of(MooneyRivlinParameters, **kwargs))]
         iso = Energy(mooney_rivlin_isochoric, (Attr(Ref(params), "c1"), Attr(Ref(params), "c2")))
@@ -310,7 +326,9 @@ def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> l
         iso = Energy(muscle_isochoric, (Ref("fibres"), activation, Ref(params)))
         whole = Energy(muscle, (Ref("fibres"), activation, Ref(params)))
     if case.mixed:
-        split = Call.of(SplitEnergy, iso, Attr(Ref(params), "K"), Attr(Ref(params), "volumetric"))
+        # (Ogden: its known shear modulus spares compiling its tangent at F = I for the Schur preconditioner)
+        known = {"shear_modulus": Attr(Ref(params), "shear_modulus")} if m.law == "ogden" else {}
+        split = Call.of(SplitEnergy, iso, Attr(Ref(params), "K"), Attr(Ref(params), "volumetric"), **known)
         out.append(Statement(m.key, material, split))
     else:
         out.append(Statement(m.key, material, whole))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 from pathlib import Path
 
@@ -55,12 +55,14 @@ from hyperfem.materials import (
     GentParameters,
     HolzapfelGasserOgdenParameters,
     MooneyRivlinParameters,
+    OgdenParameters,
     ReducedPolynomialParameters,
     VerondaWestmannParameters,
     WeissParameters,
     YeohParameters,
 )
 from hyperfem.materials.holzapfel_gasser_ogden import HGO_SWITCHES
+from hyperfem.materials.ogden import CONVENTIONS
 from hyperfem.materials.volumetric import VOLUMETRIC_LAWS
 from hyperfem.simulation.fields import FIELDS, FORMATS
 from hyperfem.simulation.render import DEFAULT_VIEW, RENDER_SCALARS, UNDEFORMED, check_render_options
@@ -159,7 +161,9 @@ _COMMON_MATERIAL = {
     "law": Key("string", required=True, choices=LAWS, example="neo_hookean",
                help="the strain energy (hf.materials): isotropic laws take two elastic constants, mooney_rivlin "
                "c1, c2, K, muscle a preset or c1, c2, K, T_max; the rubber and tissue laws the fields of their "
-               "parameter class (YeohParameters, ...)"),
+               "parameter class (YeohParameters, ...), ogden the lists mu and alpha, K and a convention; hencky "
+               "and saint_venant_kirchhoff_principal are laws of the principal stretches (seed 003 4.5.1) with "
+               "two elastic constants"),
     "region": Key("string", example="muscle",
                   help="cell group of the mesh this material fills; needed with several materials; default: the "
                   "whole body"),
@@ -305,6 +309,21 @@ _FUNG = {
     "K": _BULK,
     "volumetric": _VOLUMETRIC,
 }
+_OGDEN = {
+    "mu": Key("numbers", required=True, example=(6.3e5, 1.2e3, -1.0e4),
+              help="coefficients in Pa, one per term, written in the convention of key convention (Ogden's mu_p of "
+              "psi = sum mu_p / alpha_p (lbar1^alpha_p + lbar2^alpha_p + lbar3^alpha_p - 3) + U(J), lbar_i the "
+              "distortional stretches; hf.materials.OgdenParameters; R. W. Ogden, Proc. R. Soc. Lond. A 326 (1972) "
+              "565); mu_p alpha_p > 0 for every term; small-strain shear modulus sum mu_p alpha_p / 2"),
+    "alpha": Key("numbers", required=True, example=(1.3, 5.0, -2.0),
+                 help="exponents alpha_p (dimensionless, nonzero), one per term of mu, the same in every convention"),
+    "convention": Key("string", choices=CONVENTIONS, default="ogden",
+                      help="how mu is written (OgdenParameters.from_convention): ogden, Ogden's mu_p; febio, FEBio's "
+                      "c_p = mu_p alpha_p (psi = sum c_p / alpha_p^2 (...)); abaqus, Abaqus's mu_i = mu_p alpha_p / 2 "
+                      "(psi = sum 2 mu_i / alpha_i^2 (...), shear modulus sum mu_i)"),
+    "K": _BULK,
+    "volumetric": _VOLUMETRIC,
+}
 LAW_KEYS = {
     **dict.fromkeys(LAME_LAWS, _LAME),
     "mooney_rivlin": _MOONEY,
@@ -314,24 +333,27 @@ LAW_KEYS = {
     "gent": _GENT,
     "arruda_boyce": _ARRUDA_BOYCE,
     "veronda_westmann": _VERONDA_WESTMANN,
+    "ogden": _OGDEN,
     "holzapfel_gasser_ogden": _HOLZAPFEL_GASSER_OGDEN,
     "weiss": _WEISS,
     "fung_orthotropic": _FUNG,
 }
 """The own keys of a ``[[material]]`` of each law (besides :data:`_COMMON_MATERIAL`)."""
-PARAMETER_CLASSES: dict[str, type] = {
+PARAMETER_CLASSES: dict[str, Callable[..., object]] = {
     "mooney_rivlin": MooneyRivlinParameters,
     "yeoh": YeohParameters,
     "reduced_polynomial": ReducedPolynomialParameters,
     "gent": GentParameters,
     "arruda_boyce": ArrudaBoyceParameters,
     "veronda_westmann": VerondaWestmannParameters,
+    "ogden": OgdenParameters.from_convention,
     "holzapfel_gasser_ogden": HolzapfelGasserOgdenParameters,
     "weiss": WeissParameters,
     "fung_orthotropic": FungOrthotropicParameters,
 }
-"""Laws whose keys are the fields of a parameter class: made once while checking, so that its
-one-line :class:`~hyperfem.errors.ParameterError` names the entry before anything is built."""
+"""Laws whose keys are the fields of a parameter class (ogden: the arguments of
+``OgdenParameters.from_convention``): made once while checking, so that its one-line
+:class:`~hyperfem.errors.ParameterError` names the entry before anything is built."""
 
 FIBRE_COMMON = {
     "type": Key("string", required=True, choices=FIBRE_TYPES, example="laplace",
@@ -768,6 +790,16 @@ def _elastic_pair(values: Mapping, law: str, where: str, mixed: bool) -> None:
         )
 
 
+def _ogden_coefficients(mu: Sequence[float], convention: str, where: str) -> None:
+    """FEBio's c_p = mu_p alpha_p and Abaqus's mu_p alpha_p / 2: Ogden's mu_p alpha_p > 0 is their sign."""
+    for i, c in enumerate(mu):
+        if not c > 0.0:
+            raise CaseFileError(
+                f"{where}.mu[{i}]: must be > 0 in the {convention} convention (it is mu_p alpha_p"
+                f"{' / 2' if convention == 'abaqus' else ''}, > 0 by Ogden's stability condition), got {c!r}"
+            )
+
+
 def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_second: bool) -> MaterialSpec:
     where = join("material", index)
     if not isinstance(table, Mapping):
@@ -796,6 +828,8 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_sec
         second = "family a02" if law == "holzapfel_gasser_ogden" else "material axis a2"
         raise CaseFileError(f"{where}: law \"{law}\" needs a second direction, its {second}: add a [second_fibres] "
                             "table (the keys of [fibres])")
+    if law == "ogden" and values.get("convention", "ogden") != "ogden":
+        _ogden_coefficients(values["mu"], values["convention"], where)
     if law in PARAMETER_CLASSES:
         given = {k: v for k, v in values.items() if k in own}
         try:

@@ -47,11 +47,14 @@ LAME_LAWS = (
     "fixed_corotated",
     "corotational_linear",
     "arap",
+    "hencky",
+    "saint_venant_kirchhoff_principal",
 )
 """Isotropic laws with the elastic constants E/nu, mu/lambda or mu/bulk_modulus."""
 
-RUBBER_LAWS = ("yeoh", "reduced_polynomial", "gent", "arruda_boyce", "veronda_westmann")
-"""Isotropic laws of the isochoric invariants with a bulk modulus ``K`` (issue 21)."""
+RUBBER_LAWS = ("yeoh", "reduced_polynomial", "gent", "arruda_boyce", "veronda_westmann", "ogden")
+"""Isotropic rubber laws with a bulk modulus ``K`` (issue 21): of the isochoric invariants, and Ogden's
+of the distortional principal stretches."""
 
 TISSUE_LAWS = ("holzapfel_gasser_ogden", "weiss", "fung_orthotropic")
 """Fibre-reinforced tissue laws with a bulk modulus ``K`` (issue 21)."""
@@ -144,7 +147,8 @@ class MaterialSpec:
         region: Cell group, or ``None`` for the whole domain.
         parameters: The law's constants as given (``E``, ``nu``, ``c1``, ...); for the laws of
             :data:`RUBBER_LAWS` and :data:`TISSUE_LAWS` and ``mooney_rivlin`` the keyword arguments of
-            their parameter class, ``volumetric`` aside.
+            their parameter class, ``volumetric`` aside (``ogden``: of ``OgdenParameters.from_convention``,
+            ``convention`` included).
         density: Mass density, or ``None``.
         volumetric: Volumetric law name, or ``None`` (the law's default).
         preset: ``"muscle"``/``"tendon"`` parameter set of the muscle law, or ``None``.
