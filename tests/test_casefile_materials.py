@@ -1,6 +1,7 @@
 """Laws of a case file, run: the polar-rotation laws (``fixed_corotated``, ``arap``, ``corotational_linear``)
 and the rubber and tissue laws of issue 21 (``yeoh``, ``reduced_polynomial``, ``gent``, ``arruda_boyce``,
-``veronda_westmann``, ``holzapfel_gasser_ogden``, ``weiss``, ``fung_orthotropic``).
+``veronda_westmann``, ``holzapfel_gasser_ogden``, ``weiss``, ``fung_orthotropic``) and its principal-stretch
+laws (``ogden``, ``hencky``).
 
 Each case runs in process through the path of ``hyperfem run``
 (:func:`hyperfem.app.main.dispatch`), and its ``--print-python`` script,
@@ -36,6 +37,15 @@ times its unit area; yeoh, gent and both HGO switches also with
 ``formulation = "mixed"``, HGO also through its ``--print-python`` script. Bad
 values, keys and directions are refused in one line before anything is built,
 also through the ``hyperfem`` command.
+
+The principal-stretch laws (``ogden``, ``hencky``) take the same stretch. Ogden's
+three terms are Ogden's 1972 fit of Treloar's data, :math:`\\mu_p = (0.63, 0.0012,
+-0.01)` MPa, :math:`\\alpha_p = (1.3, 5, -2)`, given in each of the three
+conventions (the same parameters to the bit, so one compiled form serves all
+three), also mixed and through its ``--print-python`` script; the references
+are NumPy's derivatives of the energies in the stretches, checked by central
+differences. Their spectral tangents are compiled with ``-O0`` (``fast_jit``):
+4 s instead of 18 s of CPU for Ogden's.
 
 Runs serially and under ``mpiexec -n 2``.
 """
@@ -506,7 +516,8 @@ def _triaxial_case(folder: Path, law: str, keys: dict, mixed: bool) -> str:
     rollers = "".join(_roller(f) for f in ("x0", "y0", "z0"))
     rollers += "".join(_roller(f"{axis}1", s - 1.0) for axis, s in zip("xyz", STRETCH3, strict=True))
     fibres = ""
-    for table, direction in zip(("fibres", "second_fibres"), NEW_LAWS[law].directions, strict=False):
+    directions = NEW_LAWS[law].directions if law in NEW_LAWS else ()
+    for table, direction in zip(("fibres", "second_fibres"), directions, strict=False):
         fibres += f'[{table}]\ntype = "constant"\ndirection = {_toml(direction)}\n\n'
     problem = '[problem]\nformulation = "mixed"\n\n' if mixed else ""
     return (
@@ -682,3 +693,233 @@ def test_json_schema_knows_the_new_laws(folder):
     for law, (change, _) in BAD_PARAMETERS.items():
         data = parse_toml(_triaxial_case(folder, law, {**NEW_LAWS[law].keys, **change}, mixed=False))
         assert validator.is_valid(data) == (law in ("reduced_polynomial", "fung_orthotropic")), law
+
+
+# -- the principal-stretch laws (issue 21): Ogden and Hencky ---------------------------------------------
+TRELOAR_MU = (0.63e6, 0.0012e6, -0.01e6)  # Pa: R. W. Ogden, Proc. R. Soc. Lond. A 326 (1972) 565, Treloar's rubber
+TRELOAR_ALPHA = (1.3, 5.0, -2.0)
+OGDEN_K = 4.0e6  # Pa: ten times the shear modulus sum(mu_p alpha_p) / 2 = 0.4225 MPa
+FEBIO_C = tuple(m * a for m, a in zip(TRELOAR_MU, TRELOAR_ALPHA, strict=True))  # c_p = mu_p alpha_p
+OGDEN_COEFFICIENTS = {  # each converts to the same mu_p = c_p / alpha_p, bit for bit (Abaqus: 2 (c_p / 2) / alpha_p)
+    "ogden": [c / a for c, a in zip(FEBIO_C, TRELOAR_ALPHA, strict=True)],  # Treloar's mu_p to round-off
+    "febio": list(FEBIO_C),
+    "abaqus": [c / 2.0 for c in FEBIO_C],  # mu_i = mu_p alpha_p / 2
+}
+HENCKY_KEYS = {"E": 1.0e6, "nu": 0.3}
+
+
+def _ogden_keys(convention: str) -> dict:
+    keys: dict[str, Any] = {"mu": OGDEN_COEFFICIENTS[convention], "alpha": list(TRELOAR_ALPHA), "K": OGDEN_K}
+    return keys if convention == "ogden" else {**keys, "convention": convention}
+
+
+def ogden_energy(stretches: np.ndarray, mu, alpha, K: float) -> float:
+    r""":math:`\sum_p \frac{\mu_p}{\alpha_p}(\sum_i \bar\lambda_i^{\alpha_p} - 3) + \frac{K}{2}\ln^2 J`."""
+    J = np.prod(stretches)
+    bar = stretches * J ** (-1.0 / 3.0)
+    return sum(m / a * (np.sum(bar**a) - 3.0) for m, a in zip(mu, alpha, strict=True)) + 0.5 * K * np.log(J) ** 2
+
+
+def ogden_P(stretches, mu, alpha, K: float) -> np.ndarray:
+    r""":math:`P_{ii} = \partial\psi/\partial\lambda_i
+    = \lambda_i^{-1}\big(\sum_p\mu_p(\bar\lambda_i^{\alpha_p} - \frac13\sum_j\bar\lambda_j^{\alpha_p}) + K\ln J\big)`
+    at :math:`F = \operatorname{diag}(\lambda_i)`."""
+    lam = np.asarray(stretches, dtype=float)
+    J = np.prod(lam)
+    bar = lam * J ** (-1.0 / 3.0)
+    tau = sum(m * (bar**a - np.sum(bar**a) / 3.0) for m, a in zip(mu, alpha, strict=True)) + K * np.log(J)
+    return np.diag(tau / lam)
+
+
+def hencky_energy(stretches: np.ndarray, mu: float, lmbda: float) -> float:
+    r""":math:`\mu\sum_i\ln^2\lambda_i + \frac\lambda2\ln^2 J` (seed 003 eq. 4.73b)."""
+    return mu * np.sum(np.log(stretches) ** 2) + 0.5 * lmbda * np.log(np.prod(stretches)) ** 2
+
+
+def hencky_P(stretches, mu: float, lmbda: float) -> np.ndarray:
+    r""":math:`P_{ii} = (2\mu\ln\lambda_i + \lambda\ln J)/\lambda_i` at :math:`F = \operatorname{diag}(\lambda_i)`."""
+    lam = np.asarray(stretches, dtype=float)
+    return np.diag((2.0 * mu * np.log(lam) + lmbda * np.log(np.prod(lam))) / lam)
+
+
+def test_principal_closed_forms_are_the_energy_derivatives():
+    """The NumPy stresses are central differences of the energies in the stretches (isotropy: P diagonal)."""
+    lam = np.array(STRETCH3)
+    cases = [
+        (
+            lambda x: ogden_energy(x, TRELOAR_MU, TRELOAR_ALPHA, OGDEN_K),
+            ogden_P(lam, TRELOAR_MU, TRELOAR_ALPHA, OGDEN_K),
+        ),
+        (lambda x: hencky_energy(x, MU, LMBDA), hencky_P(lam, MU, LMBDA)),
+    ]
+    h = 1e-6
+    for psi, P in cases:
+        numeric = [(psi(lam + h * e) - psi(lam - h * e)) / (2.0 * h) for e in np.eye(3)]
+        np.testing.assert_allclose(numeric, np.diag(P), rtol=0, atol=1e-7 * np.abs(P).max())
+
+
+@pytest.fixture
+def fast_jit(monkeypatch):
+    """Forms compiled with ``-O0`` while the test runs (the spectral tangents: 4 s instead of 18 s at ``-O2``)."""
+    from dolfinx import jit
+
+    doc = jit.DOLFINX_DEFAULT_JIT_OPTIONS["cffi_extra_compile_args"][1]
+    monkeypatch.setitem(jit.DOLFINX_DEFAULT_JIT_OPTIONS, "cffi_extra_compile_args", (["-O0", "-g0"], doc))
+
+
+def _check_triaxial(summary: dict, P: np.ndarray) -> None:
+    """Each moved face reacts with P_ii (unit areas), each fixed one with -P_ii; the homogeneous displacement."""
+    scale = np.abs(P).max()
+    for i, axis in enumerate("xyz"):
+        expected = np.zeros(3)
+        expected[i] = P[i, i]
+        np.testing.assert_allclose(_force(summary, f"{axis}1"), expected, rtol=0, atol=1e-6 * scale)
+        np.testing.assert_allclose(_force(summary, f"{axis}0"), -expected, rtol=0, atol=1e-6 * scale)
+    X = np.array([0.5, 0.5, 1.0])
+    np.testing.assert_allclose(summary["probe_displacement"][0], (np.array(STRETCH3) - 1.0) * X, rtol=0, atol=1e-9)
+
+
+def test_ogden_conventions_triaxial_stretch(folder, capsys, fast_jit):
+    """Ogden's Treloar fit at F = diag(1.3, 0.9, 1.1), its mu given as Ogden's mu_p, FEBio's c_p = mu_p alpha_p and
+    Abaqus's mu_p alpha_p / 2: the same parameters, the reactions P_ii of NumPy's formula, the same to round-off
+    in all three; the FEBio case also through its ``--print-python`` script (OgdenParameters.from_convention)."""
+    from hyperfem.materials import OgdenParameters
+
+    made = {c: OgdenParameters.from_convention(**_ogden_keys(c)) for c in OGDEN_COEFFICIENTS}
+    assert made["febio"] == made["ogden"] == made["abaqus"]  # one compiled form for the three runs
+    np.testing.assert_allclose(made["ogden"].mu, TRELOAR_MU, rtol=1e-15)
+    P = ogden_P(STRETCH3, made["ogden"].mu, TRELOAR_ALPHA, OGDEN_K)
+    summaries = {}
+    for convention in ("febio", "ogden", "abaqus"):
+        text = _triaxial_case(folder, "ogden", _ogden_keys(convention), mixed=False)
+        name = f"triaxial_ogden_{convention}"
+        run = run_case(folder, name, text, capsys) if convention == "febio" else _run(folder, name, text)
+        summaries[convention] = run
+        _check_triaxial(summaries[convention], P)
+    for convention in ("ogden", "abaqus"):
+        for boundary, reaction in summaries["febio"]["reactions"].items():
+            got = summaries[convention]["reactions"][boundary]["force"]
+            np.testing.assert_allclose(got, reaction["force"], rtol=0, atol=1e-9 * np.abs(P).max())
+
+
+def test_ogden_mixed_triaxial_stretch(folder, capsys, fast_jit):
+    """formulation = "mixed": ogden_isochoric through SplitEnergy (with Ogden's known shear modulus, so that the
+    Schur preconditioner would not compile its tangent at I), U(theta) at theta = J: the same reactions."""
+    keys = {**_ogden_keys("abaqus"), "volumetric": "log"}
+    summary = run_case(folder, "triaxial_ogden_mixed", _triaxial_case(folder, "ogden", keys, mixed=True), capsys)
+    _check_triaxial(summary, ogden_P(STRETCH3, OGDEN_COEFFICIENTS["ogden"], TRELOAR_ALPHA, OGDEN_K))
+
+
+def test_ogden_split_energy_carries_its_shear_modulus(folder):
+    """The mixed Ogden material of a case is a SplitEnergy with shear_modulus = sum(mu_p alpha_p) / 2, which
+    reference_shear_moduli returns as it is (nothing compiled)."""
+    from dolfinx import mesh as dmesh
+
+    import hyperfem as hf
+    from hyperfem.app.calls import evaluate
+    from hyperfem.app.casefile import check_case, parse_toml
+    from hyperfem.app.plan import plan
+    from hyperfem.errors import ParameterError
+    from hyperfem.problem.mixed import MixedHyperelasticProblem, SplitEnergy
+
+    case = check_case(parse_toml(_triaxial_case(folder, "ogden", _ogden_keys("febio"), mixed=True)), folder / "a.toml")
+    variables: dict[str, Any] = {"comm": MPI.COMM_WORLD}
+    for statement in plan(case):
+        if statement.target in ("params", "material"):
+            variables[statement.target] = evaluate(statement.value, variables)
+    material = variables["material"]
+    assert isinstance(material, SplitEnergy)
+    mu0 = 0.5 * sum(FEBIO_C)
+    assert material.shear_modulus == pytest.approx(mu0, rel=1e-15)
+    domain = hf.Domain.from_locators(dmesh.create_unit_cube(MPI.COMM_WORLD, 1, 1, 1), {})
+    problem = MixedHyperelasticProblem(domain, material)
+    assert problem.reference_shear_moduli() == {None: material.shear_modulus}
+    with pytest.raises(ParameterError, match="SplitEnergy: shear_modulus must be"):
+        SplitEnergy(material.isochoric, OGDEN_K, shear_modulus=0.0)
+
+
+def test_hencky_triaxial_stretch(folder, fast_jit):
+    """Hencky with E and nu, like the other Lame laws: the reactions P_ii = (2 mu ln l_i + lambda ln J) / l_i."""
+    summary = _run(folder, "triaxial_hencky", _triaxial_case(folder, "hencky", HENCKY_KEYS, mixed=False))
+    _check_triaxial(summary, hencky_P(STRETCH3, MU, LMBDA))
+
+
+PRINCIPAL_BAD = [
+    ("ogden", {"alpha": [1.3, 5.0]}, "material[0]: OgdenParameters: mu and alpha need equal lengths, got 3 and 2"),
+    ("ogden", {"mu": [6.3e5, 1.2e3, 1.0e4]},
+     "material[0]: OgdenParameters: term 2 needs mu*alpha > 0 (Ogden's stability condition), got mu=10000.0, "
+     "alpha=-2.0"),
+    ("ogden", {"alpha": [1.3, 0.0, -2.0]}, "material[0]: OgdenParameters: alpha[1] must be nonzero"),
+    ("ogden", {"convention": "febio", "mu": [8.19e5, 6.0e3, -2.0e4]},
+     "material[0].mu[2]: must be > 0 in the febio convention (it is mu_p alpha_p, > 0 by Ogden's stability "
+     "condition), got -20000.0"),
+    ("ogden", {"convention": "abaqs"},
+     "material[0].convention: unknown value 'abaqs' (did you mean 'abaqus'?); choose from abaqus, febio, ogden"),
+    ("ogden", {"mu": 6.3e5}, "material[0].mu: expected an array of numbers, got a number"),
+    ("ogden", {"alpah": [1.3, 5.0, -2.0]}, "material[0].alpah: unknown key (did you mean 'alpha'?)"),
+    ("ogden", {"K": 0.0}, "material[0].K: must be > 0, got 0.0"),
+    ("hencky", {"nu": 0.5}, "material[0].nu: Poisson's ratio must lie in (-1, 0.5), got 0.5"),
+    ("hencky", {"K": 1.0e6}, "material[0].K: unknown key"),
+]
+
+
+@pytest.mark.parametrize("law, change, expected", PRINCIPAL_BAD, ids=[f"{c[0]}-{next(iter(c[1]))}-{i}" for i, c in
+                                                                       enumerate(PRINCIPAL_BAD)])
+def test_principal_law_bad_parameter(law, change, expected, folder):
+    """One line naming the entry: a key's type, range or choice (did-you-mean), or OgdenParameters' own check."""
+    base = _ogden_keys("ogden") if law == "ogden" else HENCKY_KEYS
+    keys = {k: v for k, v in {**base, **change}.items() if not (k == "alpha" and "alpah" in change)}
+    assert f"bad.toml: {expected}" in _check_error(folder, _triaxial_case(folder, law, keys, mixed=False))
+
+
+def test_hencky_is_not_mixed(folder):
+    """Hencky has no isochoric/volumetric split: formulation = "mixed" is refused, naming the mixed laws."""
+    message = _check_error(folder, _triaxial_case(folder, "hencky", HENCKY_KEYS, mixed=True))
+    assert "material[0].law: 'hencky' has no isochoric/volumetric split" in message and "ogden" in message
+
+
+@pytest.mark.serial  # starts its own process
+def test_ogden_bad_parameter_through_the_command(folder):
+    """``hyperfem run`` of mismatched mu and alpha: exit status 1, one line ``hyperfem: error: ...``."""
+    import os
+    import subprocess
+    import sys
+
+    law, change, expected = PRINCIPAL_BAD[0]
+    path = folder / "bad_ogden.toml"
+    path.write_text(_triaxial_case(folder, law, {**_ogden_keys("ogden"), **change}, mixed=False))
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMI_", "PMIX_", "HYDRA_", "MPIR_", "MPICH_"))}
+    env["PYTHONWARNINGS"] = "ignore"
+    result = subprocess.run(
+        [sys.executable, "-m", "hyperfem.app.main", "run", str(path), "--output", str(folder / "bad_ogden")],
+        capture_output=True, text=True, timeout=240, env=env,
+    )
+    assert result.returncode == 1, (result.stdout, result.stderr)
+    assert "Traceback" not in result.stdout + result.stderr and result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0] == f"hyperfem: error: {path}: {expected}", result.stderr
+
+
+def test_schema_knows_the_principal_laws(folder):
+    """``hyperfem schema`` lists ogden's keys with their help (units, the conventions), ``--json`` takes the
+    cases above and refuses what it can see (an unknown convention, a scalar mu, K <= 0)."""
+    from hyperfem.app.casefile import parse_toml
+    from hyperfem.app.reference import json_schema, reference
+
+    text = " ".join(reference().replace("\n" + " " * 40 + "#   ", " ").split())  # comments unwrapped
+    assert '# law = "ogden"' in text and '# law = "hencky"' not in text  # hencky: a Lame law, listed with them
+    for needle in ("# mu = [6.3e5, 1200.0, -10000.0] # [numbers], required: coefficients in Pa",
+                   "# alpha = [1.3, 5.0, -2.0]", '# convention = "ogden" # "abaqus" | "febio" | "ogden", default',
+                   "FEBio's c_p = mu_p alpha_p", "Abaqus's mu_i = mu_p alpha_p / 2", "R. W. Ogden, Proc. R. Soc."):
+        assert needle in text, needle
+    assert '| "hencky" | "saint_venant_kirchhoff_principal" |' in text
+    jsonschema = pytest.importorskip("jsonschema")
+    validator = jsonschema.Draft202012Validator(json_schema())
+    good = [("ogden", _ogden_keys(c), m) for c in OGDEN_COEFFICIENTS for m in (False, True)]
+    good += [("hencky", HENCKY_KEYS, False), ("saint_venant_kirchhoff_principal", HENCKY_KEYS, False)]
+    for law, keys, mixed in good:
+        data = parse_toml(_triaxial_case(folder, law, keys, mixed))
+        assert [e.message for e in validator.iter_errors(data)] == [], (law, keys)
+    for change in ({"convention": "abaqs"}, {"mu": 6.3e5}, {"K": 0.0}):
+        data = parse_toml(_triaxial_case(folder, "ogden", {**_ogden_keys("ogden"), **change}, mixed=False))
+        assert not validator.is_valid(data), change
