@@ -234,3 +234,33 @@ __all__ += [
     "spectral_invariants",
     "volume_preservation",
 ]
+
+from hyperfem.materials.fitting import (  # noqa: E402
+    FIT_LAWS,
+    TRELOAR,
+    Curve,
+    FitResult,
+    ModeError,
+    StabilityLoss,
+    fit,
+    plot_fits,
+    read_curves,
+    treloar_data,
+)
+from hyperfem.materials.homogeneous import MODES, HomogeneousResponse, mode_stretches  # noqa: E402
+
+__all__ += [
+    "FIT_LAWS",
+    "MODES",
+    "TRELOAR",
+    "Curve",
+    "FitResult",
+    "HomogeneousResponse",
+    "ModeError",
+    "StabilityLoss",
+    "fit",
+    "mode_stretches",
+    "plot_fits",
+    "read_curves",
+    "treloar_data",
+]
