@@ -656,6 +656,27 @@ def test_new_law_case_errors(folder):
     assert expected in _check_error(folder, skew)
 
 
+def test_check_sees_the_second_direction(folder):
+    """``hyperfem check`` (check_dimensions, check_groups) reads [second_fibres] as it reads [fibres]."""
+    from hyperfem.app.build import build_domain, check_dimensions, check_groups
+    from hyperfem.app.casefile import CaseFileError, check_case, parse_toml
+    from mpi4py import MPI
+
+    import re
+
+    hgo = _triaxial_case(folder, "holzapfel_gasser_ogden", NEW_LAWS["holzapfel_gasser_ogden"].keys, mixed=False)
+    head, _, tail = hgo.partition("[second_fibres]")
+    short = head + "[second_fibres]" + re.sub(r"direction = \[[^]]*\]", "direction = [0.0, 1.0]", tail, count=1)
+    case = check_case(parse_toml(short), folder / "short.toml")
+    domain = build_domain(case, MPI.COMM_WORLD)
+    with pytest.raises(CaseFileError, match=r"second_fibres.direction: 2 components"):
+        check_dimensions(case, domain)
+    laplace = head + '[second_fibres]\ntype = "laplace"\nsource = "x9"\ntarget = "x1"\n\n' + tail[tail.index("[[bc]]"):]
+    case = check_case(parse_toml(laplace), folder / "laplace.toml")
+    with pytest.raises(CaseFileError, match=r"second_fibres.source: no boundary 'x9'"):
+        check_groups(case, build_domain(case, MPI.COMM_WORLD))
+
+
 @pytest.mark.serial  # each run starts its own process
 @pytest.mark.parametrize("law", ["reduced_polynomial", "fung_orthotropic"])
 def test_new_law_bad_parameter_through_the_command(law, folder):

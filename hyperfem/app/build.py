@@ -79,8 +79,9 @@ def _groups(case: Case) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
         if c.boundary is not None:
             facets.append((f"{c.key}.boundary", c.boundary))
         facets += [(f"{c.key}.boundaries[{i}]", name) for i, name in enumerate(c.boundaries or ())]
-    if case.fibres is not None and case.fibres.type == "laplace":
-        facets += [("fibres.source", case.fibres.options["source"]), ("fibres.target", case.fibres.options["target"])]
+    for key, fibres in (("fibres", case.fibres), ("second_fibres", case.second_fibres)):
+        if fibres is not None and fibres.type == "laplace":
+            facets += [(f"{key}.source", fibres.options["source"]), (f"{key}.target", fibres.options["target"])]
     cells = [(f"{m.key}.region", m.region) for m in case.materials if m.region is not None]
     cells += [(f"{ld.key}.region", ld.region) for ld in case.loads if ld.region is not None]
     return facets, cells
@@ -134,8 +135,9 @@ def check_dimensions(case: Case, domain: Domain) -> None:
         name, where = ("center", contact.center) if contact.type == "sphere" else ("point", contact.point)
         if where is not None and len(where) != gdim:
             fail(f"{contact.key}.{name}", f"{len(where)} components")
-    if case.fibres is not None and case.fibres.type == "constant" and len(case.fibres.options["direction"]) != gdim:
-        fail("fibres.direction", f"{len(case.fibres.options['direction'])} components")
+    for key, fibres in (("fibres", case.fibres), ("second_fibres", case.second_fibres)):
+        if fibres is not None and fibres.type == "constant" and len(fibres.options["direction"]) != gdim:
+            fail(f"{key}.direction", f"{len(fibres.options['direction'])} components")
 
 
 def check_mesh(case: Case, domain: Domain, *, echo: bool = False) -> None:
