@@ -237,7 +237,7 @@ def main() -> None:
                    help="approximate tetrahedron counts")
     p.add_argument("--config", nargs="+", default=["cg-icc", "mumps-modified"], choices=[*CONFIGS, BASELINE])
     p.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
-    p.add_argument("--budget", type=int, default=2, help="Newton iterations per step")
+    p.add_argument("--budget", type=int, default=6, help="Newton iterations per step")
     p.add_argument("--rtol", type=float, default=1e-4, help="a step stops early at |r| <= rtol |r0|")
     p.add_argument("--dt", type=float, default=1.0 / 30.0)
     p.add_argument("--steps", type=int, default=60, help="timed steps")

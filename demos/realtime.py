@@ -103,7 +103,7 @@ def parse(argv=None):
     where.add_argument("--h", type=positive_float, default=1.0, help="element size of the generated beam (m)")
     p.add_argument("--steps", type=positive_int, default=60, help="time steps (frames)")
     p.add_argument("--dt", type=positive_float, default=1.0 / 30.0, help="time step = frame time (s)")
-    p.add_argument("--budget", type=positive_int, default=2, help="Newton iterations per step")
+    p.add_argument("--budget", type=positive_int, default=6, help="Newton iterations per step")
     p.add_argument("--config", choices=sorted(CONFIGS), default="cg-icc-modified", help="linear solver configuration")
     p.add_argument("--rtol", type=positive_float, default=1e-4, help="a step stops at |r| <= rtol |r0|")
     p.add_argument("--radius", type=positive_float, default=1.0, help="radius of the circle (m)")
