@@ -32,11 +32,11 @@ import pytest
 import ufl
 from mpi4py import MPI
 
-from dolfinx import fem, la
+from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from hyperfem.errors import ParameterError
-from hyperfem.kinematics import deformation_gradient
+from taylor_checks import taylor_rates
 from hyperfem.materials.arruda_boyce import (
     ARRUDA_BOYCE_COEFFICIENTS,
     ArrudaBoyceParameters,
@@ -421,73 +421,9 @@ def test_closed_forms_need_the_log_volumetric_law():
 STEPS = 2e-2 / 2.0 ** np.arange(5)
 
 
-def _field(x: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
-    """A smooth, partition-independent vector field."""
-    out = np.zeros((3, x.shape[1]))
-    for i in range(3):
-        a = coeffs[i]
-        out[i] = a[0] * x[0] + a[1] * x[1] ** 2 + a[2] * np.sin(3 * x[0] + x[2]) + a[3] * x[0] * x[1] * x[2]
-    return out
-
-
-def taylor_remainders(psi: Callable[[Any], Any], stretch: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
-    """Energy -> residual and residual -> tangent Taylor remainders of int psi(F(u)) dx at a stretched random state."""
-    comm = MPI.COMM_WORLD
-    mesh = dmesh.create_box(comm, [np.zeros(3), np.array([1.0, 0.5, 0.5])], [2, 1, 1], dmesh.CellType.tetrahedron)
-    V = fem.functionspace(mesh, ("Lagrange", 1, (3,)))
-    u, du = fem.Function(V), fem.Function(V)
-    rng = np.random.default_rng(17)  # same numbers on every rank
-    cu, cd = 0.08 * rng.standard_normal((3, 4)), rng.standard_normal((3, 4))
-    u.interpolate(lambda x: _field(x, cu) + np.array([[stretch], [0.0], [0.0]]) * x[0])
-    du.interpolate(lambda x: _field(x, cd))
-    u0 = u.x.array.copy()
-    dx = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 1})  # P1: F is constant per cell
-    Pi = psi(deformation_gradient(u)) * dx
-    R = ufl.derivative(Pi, u, ufl.TestFunction(V))
-    # The tangent is applied to du as the vector form K(u) du: a matrix's column layout in parallel
-    # (its sparsity pattern's ghosts) is not the function space's.
-    Kdu_form = ufl.action(ufl.derivative(R, u, ufl.TrialFunction(V)), du)
-    forms = [fem.form(f, jit_options=JIT_OPTIONS) for f in (Pi, R, Kdu_form)]
-    n = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-
-    def at(h):
-        u.x.array[:] = u0 + h * du.x.array
-        u.x.scatter_forward()
-
-    def energy(h):
-        at(h)
-        return comm.allreduce(fem.assemble_scalar(forms[0]), op=MPI.SUM)
-
-    def assemble(form):
-        b = fem.assemble_vector(form)
-        b.scatter_reverse(la.InsertMode.add)
-        return b.array[:n].copy()
-
-    def residual(h):
-        at(h)
-        return assemble(forms[1])
-
-    def dot(a, b):
-        return comm.allreduce(float(np.dot(a, b)), op=MPI.SUM)
-
-    R0 = residual(0.0)
-    at(0.0)
-    Kdu = assemble(forms[2])
-    assert np.all(np.isfinite(R0)) and np.all(np.isfinite(Kdu))
-    Pi0, dPi = energy(0.0), dot(R0, du.x.array[:n])
-    assert abs(dPi) > 1e-3
-    e0 = np.array([abs(energy(h) - Pi0 - h * dPi) for h in STEPS])
-    e1 = np.array([math.sqrt(dot(r, r)) for r in (residual(h) - R0 - h * Kdu for h in STEPS)])
-    return _rates(e0), _rates(e1)
-
-
-def _rates(errors: np.ndarray) -> np.ndarray:
-    return np.log(errors[:-1] / errors[1:]) / np.log(STEPS[:-1] / STEPS[1:])
-
-
 @pytest.mark.parametrize("name", ["yeoh", "gent", "arruda_boyce", "veronda_westmann"])
 def test_taylor_energy_residual_tangent(name):
     law = LAWS[name]
-    r0, r1 = taylor_remainders(lambda F: law.psi(F, law.params))
+    r0, r1 = taylor_rates(lambda mesh: lambda F: law.psi(F, law.params), STEPS)
     assert r0.min() > 1.9 and r0.max() < 2.1, r0
     assert r1.min() > 1.9, r1
