@@ -24,6 +24,8 @@ import dolfinx.fem.petsc as fpetsc
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
+from taylor_checks import smooth_field
+
 import hyperfem as hf
 from hyperfem.materials import LameParameters, neo_hookean
 
@@ -46,13 +48,7 @@ def _box_domain() -> hf.Domain:
     )
 
 
-def _state(x: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
-    """A smooth, partition-independent 'random' vector field."""
-    out = np.zeros((3, x.shape[1]))
-    for i in range(3):
-        a = coeffs[i]
-        out[i] = a[0] * x[0] + a[1] * x[1] ** 2 + a[2] * np.sin(3 * x[0] + x[2]) + a[3] * x[0] * x[1] * x[2]
-    return out
+_state = smooth_field  # a smooth, partition-independent 'random' vector field (tests/taylor_checks.py)
 
 
 def _make_problem(loads) -> hf.HyperelasticProblem:
