@@ -169,6 +169,11 @@ class EnergyProblem:
         """The time (load factor of a quasi-static ramp) the loads are at."""
         return self._time
 
+    @property
+    def updaters(self) -> tuple[Updater, ...]:
+        """What :meth:`set_time` moves besides loads and boundary values (the given updaters and the energies' own)."""
+        return tuple(self._updaters)
+
     def set_time(self, t_loads: float, t_bcs: float | None = None) -> None:
         """Move loads and updaters to ``t_loads`` and prescribed displacements to ``t_bcs``.
 

@@ -7,7 +7,9 @@ stopped:
   vector :math:`(u, p, \theta - 1)`), and for a dynamic run the velocity
   ``v`` and acceleration ``a`` (time :math:`t_n`); stored by
   :mod:`hyperfem.io.checkpoint` (one ``.npz`` per rank, owned dof values
-  keyed by global dof index);
+  keyed by global dof index); and the fields of every updater of the problem
+  that keeps a state of its own (:class:`StatefulUpdater`, e.g. the history
+  of :class:`~hyperfem.materials.viscoelastic.Viscoelastic`);
 * the time (load factor) and the count of accepted steps;
 * the state of the step-size control (:class:`StepperState`): the nominal
   increment, the run of easy steps towards the next growth, the attempts spent;
@@ -73,6 +75,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Checkpoint",
     "CheckpointError",
+    "StatefulUpdater",
     "StepperState",
     "case_hash",
     "checkpoint_functions",
@@ -146,6 +149,33 @@ class _DynamicRun(Protocol):
         """Back to the state ``(t, u, v, a)``."""
 
 
+@runtime_checkable
+class StatefulUpdater(Protocol):
+    """An updater of the problem with a state of its own that a checkpoint holds (e.g. a viscoelastic history)."""
+
+    def state_functions(self) -> dict[str, fem.Function]:
+        """Its state at the accepted state now in the unknown, by name (collective)."""
+
+    def restart(self, t: float) -> None:
+        """The functions were read back: they are the state at the accepted time ``t``."""
+
+
+@runtime_checkable
+class _Updated(Protocol):
+    """A problem that names its updaters (:class:`~hyperfem.problem.base.EnergyProblem`)."""
+
+    @property
+    def updaters(self) -> tuple[Any, ...]:
+        """What ``set_time`` moves besides loads and boundary values."""
+
+
+def _stateful_updaters(sim: Simulation) -> list[StatefulUpdater]:
+    """The updaters of the run's problem that keep a state (none for a problem that names no updaters)."""
+    base = sim.fields.base
+    updaters = base.updaters if isinstance(base, _Updated) else ()
+    return [u for u in updaters if isinstance(u, StatefulUpdater)]
+
+
 def case_hash(case: object) -> str:
     """SHA-256 of the canonical JSON of a case description (sorted keys; non-JSON values by ``str``)."""
     text = json.dumps(jsonable(case), sort_keys=True, default=str, allow_nan=True)
@@ -153,12 +183,14 @@ def case_hash(case: object) -> str:
 
 
 def checkpoint_functions(sim: Simulation) -> dict[str, fem.Function]:
-    """What a checkpoint of ``sim`` stores: ``u``, and ``v``, ``a`` for a dynamic run."""
+    """What a checkpoint of ``sim`` stores: ``u``, ``v``, ``a`` for a dynamic run, the updaters' states."""
     problem = sim.problem
     functions = {"u": problem.u}
     if sim.kind == "dynamic":
         assert isinstance(problem, _DynamicRun)  # the time step of a dynamic run
         functions.update(v=problem.v, a=problem.a)
+    for k, updater in enumerate(_stateful_updaters(sim)):
+        functions.update({f"updater{k}_{name}": f for name, f in updater.state_functions().items()})
     return functions
 
 
@@ -282,6 +314,8 @@ def load_checkpoint(sim: Simulation, path: str | Path) -> dict:
         raise CheckpointError(f"cannot restart from {where}: it does not match this run: {mismatch}")
     read_functions(where, checkpoint_functions(sim), sim.comm)
     t = float(meta["time"])
+    for updater in _stateful_updaters(sim):
+        updater.restart(t)
     if sim.kind == "dynamic":
         from hyperfem.dynamics.incremental import DynamicState
 
