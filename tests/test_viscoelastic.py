@@ -474,3 +474,22 @@ def test_restart_mid_relaxation_reproduces_the_uninterrupted_run(shared_tmp):
         b = np.array([row[key] for row in reference["rows"]])
         assert np.max(np.abs(a - b)) <= 1e-10 * np.max(np.abs(b)), key  # measured 0 on 1 and on 2 ranks
     assert _history_norms(resumed.problem) == pytest.approx(_history_norms(full.problem), rel=1e-10)
+
+
+def test_relaxation_demo(shared_tmp):
+    """demos/relaxation.py, shortened: the small-strain run on the closed form; the large one relaxes nearly as much."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parent.parent / "demos" / "relaxation.py"
+    spec = importlib.util.spec_from_file_location("demo_relaxation", path)
+    assert spec is not None and spec.loader is not None
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    result = demo.main(["--hold", "1.5", "--dt", "0.1", "--output", str(shared_tmp)])
+    assert result["ranks"] == MPI.COMM_WORLD.size
+    assert result["small_strain_error"] < 2e-3  # of E0 eps0 at eps0 = 1e-3
+    small, large = result["relaxed_fractions"]
+    assert small == pytest.approx(result["closed_relaxed_fraction"], abs=1e-3)
+    assert 0.2 < result["large_strain_deviation"] < 0.4 and large == pytest.approx(small, abs=0.05)
+    MPI.COMM_WORLD.Barrier()  # rank 0 writes the files
+    assert (shared_tmp / "relaxation.png").stat().st_size > 0 and (shared_tmp / "relaxation.json").exists()
