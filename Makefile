@@ -85,6 +85,7 @@ demos: bootstrap
 	$(PY) demos/glued_bar.py
 	$(PY) demos/fold.py
 	$(PY) demos/fit_treloar.py
+	$(PY) demos/relaxation.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)

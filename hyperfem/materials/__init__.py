@@ -264,3 +264,8 @@ __all__ += [
     "read_curves",
     "treloar_data",
 ]
+
+from hyperfem.materials.prony import PronySeries  # noqa: E402
+from hyperfem.materials.viscoelastic import Viscoelastic, ViscousHistory  # noqa: E402
+
+__all__ += ["PronySeries", "Viscoelastic", "ViscousHistory"]
