@@ -85,6 +85,7 @@ Usage::
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import ufl
@@ -94,8 +95,10 @@ from mpi4py import MPI
 from hyperfem.errors import ParameterError
 from hyperfem.materials.polar import QuadratureField
 from hyperfem.materials.prony import PronySeries
-from hyperfem.problem.mixed import SplitEnergy
 from hyperfem.validation import check_positive
+
+if TYPE_CHECKING:  # hyperfem.problem imports hyperfem.materials: a run-time import would be circular
+    from hyperfem.problem.mixed import SplitEnergy
 
 __all__ = ["PronySeries", "Viscoelastic", "ViscousHistory", "isochoric_pk2"]
 
@@ -307,6 +310,8 @@ class Viscoelastic:
         name: str = "viscoelastic",
     ):
         where = "Viscoelastic"
+        from hyperfem.problem.mixed import SplitEnergy
+
         if not isinstance(elastic, SplitEnergy):
             raise ParameterError(
                 f"{where}: elastic must be a SplitEnergy (isochoric part, bulk modulus, volumetric law), "
