@@ -1,4 +1,5 @@
-"""Principal-stretch energies: form compilation, tangent assembly, and accuracy where stretches coincide.
+"""Material laws: form compilation and tangent assembly of every law of issue 21 against neo-Hookean, and the
+accuracy of the principal-stretch energies where stretches coincide.
 
 Prints one JSON object per line:
 
@@ -49,6 +50,22 @@ from dolfinx import mesh as dmesh  # noqa: E402
 from hyperfem.kinematics import right_cauchy_green  # noqa: E402
 from hyperfem.materials import LameParameters, neo_hookean  # noqa: E402
 from hyperfem.materials.ogden import OgdenParameters, ogden  # noqa: E402
+from hyperfem.materials import (  # noqa: E402
+    ArrudaBoyceParameters,
+    FungOrthotropicParameters,
+    GentParameters,
+    HolzapfelGasserOgdenParameters,
+    VerondaWestmannParameters,
+    WeissParameters,
+    YeohParameters,
+    arruda_boyce,
+    fung_orthotropic,
+    gent,
+    holzapfel_gasser_ogden,
+    veronda_westmann,
+    weiss,
+    yeoh,
+)
 from hyperfem.materials.principal_stretches import (  # noqa: E402
     eigenvalue_power_sum,
     eigenvalue_sum,
@@ -59,11 +76,27 @@ from hyperfem.materials.principal_stretches import (  # noqa: E402
 LAME = LameParameters(mu=1.0, lmbda=10.0)
 TRELOAR = OgdenParameters(mu=(0.63, 0.0012, -0.01), alpha=(1.3, 5.0, -2.0), K=10.0)  # Ogden 1972, MPa
 GENERAL = OgdenParameters(mu=(0.63, 0.0012, -0.01), alpha=(1.3, 5.0, -2.5), K=10.0)  # no even exponent
+A0, A1 = ufl.as_vector((1.0, 0.0, 0.0)), ufl.as_vector((0.0, 0.6, 0.8))  # fibre directions (constants)
 LAWS = {
     "neo_hookean": lambda F: neo_hookean(F, LAME),
     "ogden3_treloar": lambda F: ogden(F, TRELOAR),
     "ogden3_general": lambda F: ogden(F, GENERAL),
     "hencky": lambda F: hencky(F, LAME),
+    "yeoh": lambda F: yeoh(F, YeohParameters(c10=0.5, c20=-0.04, c30=0.006, K=10.0)),
+    "gent": lambda F: gent(F, GentParameters(mu=1.1, Jm=10.0, K=10.0)),
+    "arruda_boyce": lambda F: arruda_boyce(F, ArrudaBoyceParameters(mu=0.9, lambda_m=2.5, K=10.0)),
+    "veronda_westmann": lambda F: veronda_westmann(F, VerondaWestmannParameters(c1=0.3, c2=0.8, K=10.0)),
+    "holzapfel_gasser_ogden": lambda F: holzapfel_gasser_ogden(
+        F, A0, A1, HolzapfelGasserOgdenParameters(mu=1.0, k1=2.0, k2=0.8, kappa=0.1, K=10.0)
+    ),
+    "weiss": lambda F: weiss(
+        F, A0, WeissParameters(c1=1.0, c2=0.2, c3=0.05, c4=20.0, c5=10.0, lambda_star=1.1, K=10.0)
+    ),
+    "fung_orthotropic": lambda F: fung_orthotropic(
+        F, A0, ufl.as_vector((0.0, 1.0, 0.0)),
+        FungOrthotropicParameters(c=1.0, b1=2.0, b2=1.5, b3=1.0, b4=0.5, b5=0.3, b6=0.4, b7=1.2, b8=0.9, b9=0.8,
+                                  K=10.0),
+    ),
 }
 EVEN = ((1.0, 2.0), (0.3, 4.0), (-0.2, -2.0))  # (mu_p, alpha_p)
 
