@@ -37,7 +37,8 @@ restores the quadratic rate at the end of a solve. An exact tangent can be
 indefinite; where its Newton direction is not a descent direction of
 :math:`\Pi`, the solver recomputes the direction with the projected tangent
 (:meth:`MeshBarrier.project_tangent`, called from the line search's
-pre-check, ``NewtonSolver._descent_guard``), and the tangent stays projected
+pre-check, ``NewtonSolver._recover_direction``, which also does so when the
+tangent stops CG), and the tangent stays projected
 until the iterates settle again. Projecting for the rest of the solve
 instead stalled the sphere indenting a finer slab (10 x 10 x 5 boxes:
 ``DIVERGED_MAX_IT``, the residual growing while :math:`\Pi` fell); with the
