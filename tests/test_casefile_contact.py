@@ -645,3 +645,62 @@ def test_bad_tool_paths_are_one_line(shared_tmp, keys, expected):
         load_case(_write_tool(shared_tmp, TOOL.replace("dhat = 1e-3", f"dhat = 1e-3\n{_braces(keys)}", 1)))
     message = str(info.value)
     assert expected in message and "\n" not in message
+
+
+# -- a rigid obstacle that turns ------------------------------------------------------------------------------------
+TURNED = {"rotation": {"axis": [0.0, 0.0, 1.0], "center": [0.5, 0.5, 0.0], "angle": 0.5, "profile": "linear"}}
+
+
+def _checked(shared_tmp, contact: dict):
+    import tomllib
+
+    from hyperfem.app.casefile import check_case
+
+    data = tomllib.loads(CASE.read_text())
+    data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+    data["contact"][0] = {"boundary": "bottom"} | contact
+    data["output"]["fields"] = []
+    return check_case(data, shared_tmp / "turned.toml")
+
+
+def test_turned_cylinder_and_tool_cases_print_and_build_the_rotation(shared_tmp):
+    """``rotation = {axis, center, angle, profile}``: the script prints RigidRotation(axis, Scaled(profile, angle),
+    center) and compiles; the bound cylinder's axis is turned by the angle at t = 1; a tool takes it too; the
+    rotation is part of the model hash."""
+    from hyperfem.app.plan import model_hash
+
+    case = _checked(shared_tmp, CYLINDER | TURNED)
+    text = " ".join(script(case).split())
+    assert ("rotation=RigidRotation((0.0, 0.0, 1.0), Scaled(linear_profile, 0.5), (0.5, 0.5, 0.0))") in text
+    compile(script(case), "turned.py", "exec")
+    built = build(dataclasses.replace(case, output=dataclasses.replace(case.output, directory=str(shared_tmp / "t"))))
+    cylinder = built.variables["contact"].obstacle
+    assert cylinder.axis_at(1.0) == pytest.approx([-np.sin(0.5), np.cos(0.5), 0.0], abs=1e-15)
+    keys = _braces("rotation = {axis = [0, 0, 1], center = [1.0, 1.0, 0.0], angle = 0.3}")
+    tool = load_case(_write_tool(shared_tmp, TOOL.replace("dhat = 1e-3", f"dhat = 1e-3\n{keys}", 1)))
+    assert "rotation=RigidRotation((0.0, 0.0, 1.0), Scaled(linear_profile, 0.3), (1.0, 1.0, 0.0))" in " ".join(
+        script(tool).split())
+    plain = _checked(shared_tmp, CYLINDER)
+    assert plain.contacts[0].rotation is None and model_hash(case) != model_hash(plain)
+
+
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        (CYLINDER | {"rotation": TURNED["rotation"] | {"axis": [0.0, 0.0, 0.0]}}, "contact[0].rotation.axis: must not"),
+        (CYLINDER | {"rotation": {"axis": [0.0, 0.0, 1.0], "center": [0.0, 0.0, 0.0]}},
+         "contact[0].rotation: missing required key 'angle'"),
+        (CYLINDER | {"rotation": TURNED["rotation"] | {"angle": float("nan")}},
+         "contact[0].rotation.angle: must be a finite number"),
+        (SPHERE | {"rotation": [0.0, 0.0, 1.0]}, "contact[0].rotation: expected a table"),
+        (SPHERE | {"center": [0.5, -2.0], "motion": [0.0, 1.0]} | TURNED,
+         "contact[0].rotation: a rotation needs a 3D sphere"),
+        ({"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]} | TURNED,
+         "contact[0].rotation: unknown key"),
+    ],
+)
+def test_bad_rotations_name_their_key(shared_tmp, change, expected):
+    with pytest.raises(CaseFileError) as info:
+        _checked(shared_tmp, change)
+    message = str(info.value)
+    assert expected in message and "\n" not in message

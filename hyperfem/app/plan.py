@@ -51,6 +51,7 @@ from hyperfem.loading import (
     Activation,
     AffineField,
     Ramp,
+    RigidRotation,
     Scaled,
     Steady,
     Table,
@@ -361,8 +362,8 @@ def model_hash(case: Case) -> str:
     """
     model: list[object] = [case.mesh, case.problem, case.materials, case.fibres, case.bcs, case.loads]
     if case.contacts:  # (cases without contact keep the hash they had before contact existed)
-        # (and contacts without a path the hash they had before paths existed)
-        model.append([{k: v for k, v in dataclasses.asdict(c).items() if k != "path" or v is not None}
+        # (and contacts without a path or rotation the hash they had before those existed)
+        model.append([{k: v for k, v in dataclasses.asdict(c).items() if k not in ("path", "rotation") or v is not None}
                       for c in case.contacts])
     if case.second_fibres is not None:  # (likewise the cases without a second direction)
         model.append(case.second_fibres)
@@ -383,6 +384,7 @@ def must_hit_times(case: Case) -> list[float]:
     profiles += [ld.profile for ld in case.loads]
     profiles += [m.activation for m in case.materials if isinstance(m.activation, Profile)]
     profiles += [c.profile for c in case.contacts] + [c.path for c in case.contacts]
+    profiles += [c.rotation.profile for c in case.contacts if c.rotation is not None]
     times = set(st.options.get("must_hit", ()))
     times |= {t for p in profiles if p is not None for t in p.kinks}
     times |= set(case.output.times or ())
@@ -560,6 +562,14 @@ def _contact_names(case: Case) -> list[str]:
     return [f"contact_{i}" if several else "contact" for i in range(len(case.contacts))]
 
 
+def _rotation(contact: ContactSpec) -> Call | None:
+    """A rigid obstacle's ``rotation``: :class:`~hyperfem.loading.RigidRotation` by ``Scaled(profile, angle)``."""
+    r = contact.rotation
+    if r is None:
+        return None
+    return Call.of(RigidRotation, r.axis, Call.of(Scaled, _profile(r.profile, explicit=True), r.angle), r.center)
+
+
 def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
     """``[[contact]]`` of ``type = "self"`` or ``"pair"``: :class:`~hyperfem.contact.SurfaceContact`;
     ``"tool"``: :class:`~hyperfem.contact.ToolContact` (its file relative to the case file), bound to the problem."""
@@ -579,6 +589,8 @@ def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
         for key in ("offset", "scale"):
             if getattr(contact, key) is not None:
                 kwargs[key] = getattr(contact, key)
+        if contact.rotation is not None:
+            kwargs["rotation"] = _rotation(contact)
     for key in ("dhat", "stiffness", "safety"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
@@ -620,6 +632,8 @@ def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call
     profile = _profile(contact.profile)
     if profile is not None:
         kwargs["profile"] = profile
+    if contact.rotation is not None:
+        kwargs["rotation"] = _rotation(contact)
     if several:
         kwargs["name"] = name  # the output columns: contact_0_force, ...
     return Call.of(Attr(Call.of(obstacle, contact.boundary, **kwargs), "bind"), Ref("problem"))

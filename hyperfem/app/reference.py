@@ -106,7 +106,8 @@ LAYOUT: dict[str, Table] = {
     "bc": Table("bc", S._BC_COMMON, array=True, on="type", variants=_by_type(S.BCS)),
     "load": Table("load", S._LOAD_COMMON, array=True, on="type", variants=_by_type(S.LOADS)),
     "contact": Table("contact", S._CONTACT_COMMON, array=True, on="type", variants=_by_type(S.CONTACTS),
-                     tables={"path": Table("contact.path", S.WAYPOINTS)}),
+                     tables={"path": Table("contact.path", S.WAYPOINTS),
+                             "rotation": Table("contact.rotation", S.CONTACT_ROTATION)}),
     "stepping": Table(
         "stepping",
         {"type": S.QUASI_STATIC["type"]},

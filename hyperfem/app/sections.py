@@ -35,6 +35,7 @@ from hyperfem.app.spec import (
     SCHEMES,
     SECOND_FIBRE_LAWS,
     BCSpec,
+    ContactRotationSpec,
     ContactSpec,
     FibreSpec,
     LoadSpec,
@@ -434,6 +435,13 @@ def _barrier_keys(obstacle: str) -> dict[str, Key]:
     }
 
 
+def _rotation_key(obstacle: str) -> Key:
+    """An obstacle's ``rotation`` table (:data:`CONTACT_ROTATION`)."""
+    return Key("table", help=f"a rigid rotation of the {obstacle} {{axis, center, angle, profile}} composed with its "
+               "translation (turned about center, which then moves with the translation; hf.loading.RigidRotation); "
+               "default none")
+
+
 def _surface_keys(default_name: str) -> dict[str, Key]:
     """The keys of the contacts of triangulated surfaces (self, pair, tool): barrier, filter, output name."""
     return {
@@ -473,6 +481,7 @@ CONTACTS = {
                       help="the sphere's centre in m (where it is at profile 0); the body stays outside it"),
         "radius": Key("number", required=True, above=0.0, example=0.3, help="the sphere's radius in m"),
         **_barrier_keys("sphere"),
+        "rotation": _rotation_key("sphere (about its own centre it matters only with friction)"),
     },
     "cylinder": {
         "boundary": _NODE_BOUNDARY,
@@ -482,6 +491,7 @@ CONTACTS = {
                     help="the axis direction (any length > 0); the cylinder is infinite, the body stays outside it"),
         "radius": Key("number", required=True, above=0.0, example=0.2, help="the cylinder's radius in m"),
         **_barrier_keys("cylinder"),
+        "rotation": _rotation_key("cylinder (it turns the axis)"),
     },
     "self": {
         "boundaries": Key("strings", required=True, example=("surface",),
@@ -526,6 +536,7 @@ CONTACTS = {
                       help="translation applied once to the file's points in m (placing the tool); default none"),
         "scale": Key("number", above=0.0, default=1.0,
                      help="factor applied once to the file's points (before offset; 1e-3 for a file in mm)"),
+        "rotation": _rotation_key("tool (center in the placed tool's coordinates, after scale and offset)"),
         **_surface_keys("indenter"),
     },
 }
@@ -571,6 +582,17 @@ WAYPOINTS = {
                   help="the translation in m at each time, one [x, y, z] per time"),
 }
 """Keys of a tool's ``path`` table: :class:`~hyperfem.loading.Waypoints`."""
+
+CONTACT_ROTATION = {
+    "axis": Key("vector", length=3, required=True, example=(0.0, 0.0, 1.0),
+                help="the rotation axis (any length > 0)"),
+    "center": Key("vector", length=3, required=True, example=(0.5, 0.5, 1.3),
+                  help="the pivot in m: a point of the axis in the obstacle's placement at profile 0"),
+    "angle": Key("number", required=True, hint="angle in radians, scaled by the profile", example=1.57,
+                 help="rotation angle in radians at f = 1 (right-handed about axis)"),
+    "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling angle"),
+}
+"""Keys of a sphere's, cylinder's or tool's ``rotation`` table: :class:`~hyperfem.loading.RigidRotation`."""
 
 AFFINE = {
     "matrix": Key("matrix", required=True, example=((0.0, 0.0, 0.0), (0.0, 0.0, 5.0e3), (0.0, -5.0e3, 0.0)),
@@ -1273,6 +1295,7 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
         type=kind,
         boundaries=tuple(names),
         path=path_,
+        rotation=_contact_rotation(values, join(where, "rotation")),
         file=path,
         dhat=values.get("dhat"),
         stiffness=values.get("stiffness"),
@@ -1304,6 +1327,17 @@ def _waypoints(values: Mapping, where: str) -> Waypoints:
         raise CaseFileError(f"{where}: {str(exc).removeprefix('Waypoints: ')}") from None
 
 
+def _contact_rotation(values: Mapping, where: str) -> ContactRotationSpec | None:
+    """An obstacle's ``rotation = {axis, center, angle, profile}`` (``None`` where it has none)."""
+    if "rotation" not in values:
+        return None
+    table = check_table(values["rotation"], CONTACT_ROTATION, where, what="a rotation")
+    if not any(table["axis"]):
+        raise CaseFileError(f"{where}.axis: must not be zero, got {list(table['axis'])}")
+    profile = check_profile(table["profile"], join(where, "profile")) if "profile" in table else None
+    return ContactRotationSpec(axis=table["axis"], center=table["center"], angle=table["angle"], profile=profile)
+
+
 def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
     where = join("contact", index)
     if not isinstance(table, Mapping):
@@ -1328,10 +1362,13 @@ def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
                 f"{where}.{name}: {len(values[name])} components for a {anchor} of {len(values[anchor])}"
             )
     profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    if "rotation" in values and len(values[anchor]) != 3:
+        raise CaseFileError(f"{where}.rotation: a rotation needs a 3D {kind} ({anchor} of {len(values[anchor])})")
     return ContactSpec(
         key=where,
         type=kind,
         boundary=values["boundary"],
+        rotation=_contact_rotation(values, join(where, "rotation")),
         point=values.get("point"),
         normal=values.get("normal"),
         center=values.get("center"),

@@ -24,6 +24,7 @@ __all__ = [
     "TISSUE_LAWS",
     "BCSpec",
     "ContactSpec",
+    "ContactRotationSpec",
     "Case",
     "FibreSpec",
     "LoadSpec",
@@ -222,6 +223,24 @@ class LoadSpec:
 
 
 @dataclass(frozen=True)
+class ContactRotationSpec:
+    """A rigid obstacle's ``rotation = {axis, center, angle, profile}``: :class:`~hyperfem.loading.RigidRotation`
+    about ``center`` by ``angle * profile(t)``, composed with the translation (:mod:`~hyperfem.contact.obstacles`).
+
+    Attributes:
+        axis: The rotation axis (non-zero).
+        center: The pivot, a point of the axis in the obstacle's reference placement.
+        angle: The angle in radians at profile 1.
+        profile: Its time profile, or ``None`` (linear).
+    """
+
+    axis: tuple[float, ...]
+    center: tuple[float, ...]
+    angle: float
+    profile: Profile | None = None
+
+
+@dataclass(frozen=True)
 class ContactSpec:
     """One ``[[contact]]``: a boundary that may touch an obstacle, itself or another body (intersection-free).
 
@@ -249,6 +268,7 @@ class ContactSpec:
         motion: Translation of the obstacle at profile 1, or ``None`` (it stays).
         profile: Time profile of the motion, or ``None`` (linear).
         path: A tool's translation through waypoints (instead of motion and profile), or ``None``.
+        rotation: A sphere's, cylinder's or tool's rotation, composed with the translation, or ``None``.
         center: The sphere's centre (at profile 0); ``None`` for a plane.
         radius: The sphere's or cylinder's radius; ``None`` for a plane.
         axis: The cylinder's axis direction; ``None`` otherwise.
@@ -278,6 +298,7 @@ class ContactSpec:
     tolerance: float | None = None
     axis: tuple[float, ...] | None = None
     path: Waypoints | None = None
+    rotation: ContactRotationSpec | None = None
 
 
 @dataclass(frozen=True)

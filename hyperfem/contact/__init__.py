@@ -10,6 +10,7 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
 * Analytic rigid obstacles, per node (no gathering): :class:`PlaneContact`
   (a half-space), :class:`SphereContact` and :class:`CylinderContact`
   (:mod:`~hyperfem.contact.cylinder`), with a prescribed translation
+  (the ball and cylinder also a rotation, :class:`~hyperfem.loading.RigidRotation`)
   and smoothed Coulomb friction (:mod:`~hyperfem.contact.nodal`,
   :mod:`~hyperfem.contact.plane`, :mod:`~hyperfem.contact.sphere`,
   :mod:`~hyperfem.contact.ccd`, :mod:`~hyperfem.contact.obstacles`).
@@ -17,7 +18,7 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   the surface gathered by :mod:`~hyperfem.contact.surface`):
   :class:`SurfaceContact` (self-contact, two bodies of one mesh;
   :mod:`~hyperfem.contact.bodies`) and :class:`ToolContact` (a rigid
-  triangulated tool from an STL/OBJ/gmsh file or arrays, moving on a path;
+  triangulated tool from an STL/OBJ/gmsh file or arrays, moving on a path and turning;
   :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`).
 * Gluing: :class:`TieContact` (two groups of non-matching meshes held
   together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).

@@ -2,7 +2,8 @@ r"""Contact of a body with a rigid infinite cylinder (a roller, a rod, a retract
 
 :class:`CylinderContact` names the boundary that may touch and the cylinder
 (:class:`~hyperfem.contact.obstacles.Cylinder`: a point of its axis, the axis
-direction :math:`a`, the radius, an optional translation). With
+direction :math:`a`, the radius, an optional translation and rotation, which
+turns the axis: :math:`a(t) = R(t)a_0`, :mod:`~hyperfem.contact.obstacles`). With
 :math:`P = I - a a^T`, :math:`q_a = P(x_a - c)`, :math:`r_a = |q_a|` and
 :math:`n_a = q_a / r_a`,
 
@@ -32,6 +33,7 @@ from hyperfem.contact.obstacles import Cylinder
 from hyperfem.contact.settings import check_contact_settings
 from hyperfem.contact.sphere import SphereBarrier
 from hyperfem.errors import ParameterError
+from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_name
@@ -56,6 +58,8 @@ class CylinderContact:
         name: Prefix of the output columns (``contact_force``, ...).
         friction: Coulomb coefficient :math:`\mu \ge 0` (0: frictionless), smoothed and lagged per step.
         friction_epsilon: The slip length below which a node sticks elastically (``None``: :math:`0.1\,\hat d`).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` of the cylinder, composed with the translation
+            (:mod:`~hyperfem.contact.obstacles`; ``None``: it does not turn).
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` is not installed.
@@ -73,12 +77,13 @@ class CylinderContact:
     name: str = "contact"
     friction: float = 0.0
     friction_epsilon: float | None = None
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         check_name(self.boundary, "boundary", "CylinderContact")
         where = f"CylinderContact on {self.boundary!r}"
         try:
-            cylinder = Cylinder(self.point, self.axis, self.radius, self.motion)
+            cylinder = Cylinder(self.point, self.axis, self.radius, self.motion, rotation=self.rotation)
         except ParameterError as exc:
             raise ParameterError(f"{where}: {str(exc).removeprefix('Cylinder: ')}") from None
         object.__setattr__(self, "point", cylinder.point)
@@ -93,7 +98,7 @@ class CylinderContact:
     @property
     def obstacle(self) -> Cylinder:
         """The cylinder as a :class:`~hyperfem.contact.obstacles.Cylinder`."""
-        return Cylinder(self.point, self.axis, self.radius, self.motion, self.profile)
+        return Cylinder(self.point, self.axis, self.radius, self.motion, self.profile, self.rotation)
 
     def bind(self, problem: SolidProblem) -> CylinderBarrier:
         """The barrier of this contact on ``problem`` (collective).
@@ -128,3 +133,10 @@ class CylinderBarrier(SphereBarrier):
             )
         self.projector = contact.obstacle.projector
         super().__init__(contact, problem)  # type: ignore[arg-type, unused-ignore]  # the sphere's fields: boundary, radius, ...
+
+    def update(self, t: float) -> None:
+        """Move (and turn) the cylinder to time (load factor) ``t``: its axis point and projector."""
+        super().update(t)
+        self.projector = self.obstacle.projector_at(t)  # type: ignore[attr-defined]
+        if hasattr(self, "step_filter"):
+            self.step_filter.projector = self.projector

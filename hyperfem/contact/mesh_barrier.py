@@ -89,6 +89,7 @@ from hyperfem.contact.barrier import require_ipctk
 from hyperfem.contact.settings import check_dhat_fits
 from hyperfem.contact.surface import ContactSurface
 from hyperfem.errors import ParameterError
+from hyperfem.loading.motion import RigidRotation
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.solver.filters import NoAdmissibleStep
 
@@ -96,7 +97,11 @@ __all__ = ["MeshBarrier", "MeshCollisionFilter", "RigidSurface", "ray_hits"]
 
 
 class RigidSurface:
-    """A rigid triangulated surface (a tool) with a prescribed translation.
+    r"""A rigid triangulated surface (a tool) with a prescribed translation and rotation.
+
+    Its vertices at time :math:`t` are :math:`R(\theta(t))(X - c_r) + c_r + s(t)`, the rotation (if any)
+    about the pivot :math:`c_r` of the reference placement, then the translation :math:`s(t)`
+    (:mod:`~hyperfem.contact.obstacles`).
 
     Args:
         points: Vertex positions at ``profile(t) = 0``, shape ``(k, 3)``.
@@ -104,6 +109,7 @@ class RigidSurface:
         motion: The translation :math:`m` (``None``: it stays), or a path: a
             callable giving the translation at ``t`` (then ``profile`` is not used).
         profile: :math:`f(t)` of the translation.
+        rotation: A :class:`~hyperfem.loading.RigidRotation` (``None``: it does not turn).
     """
 
     def __init__(
@@ -112,14 +118,16 @@ class RigidSurface:
         faces: np.ndarray,
         motion: np.ndarray | Callable[[float], Any] | None,
         profile: Callable[[float], float],
+        rotation: RigidRotation | None = None,
     ):
         self.points = np.asarray(points, dtype=float).reshape(-1, 3)
         self.faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
         self.motion = motion if motion is None or callable(motion) else np.asarray(motion, dtype=float)
         self.profile = profile
+        self.rotation = rotation
 
     def offset(self, t: float) -> np.ndarray:
-        """The translation :math:`f(t)\\,m` at time (load factor) ``t``."""
+        """The translation :math:`s(t)` (:math:`f(t)\\,m`, or the path's) at time (load factor) ``t``."""
         if self.motion is None:
             return np.zeros(3)
         if callable(self.motion):
@@ -128,7 +136,24 @@ class RigidSurface:
 
     def vertices(self, t: float) -> np.ndarray:
         """The vertex positions at time ``t``."""
-        return self.points + self.offset(t)
+        points = self.points if self.rotation is None else self.rotation.rotate(self.points, t)
+        return points + self.offset(t)
+
+    def transfer(self, x: np.ndarray, t_from: float, t: float) -> np.ndarray:
+        """Points ``(m, 3)`` moved rigidly with the tool from its placement at ``t_from`` to the one at ``t``."""
+        x = np.asarray(x, dtype=float)
+        if self.rotation is None:
+            return x + (self.offset(t) - self.offset(t_from))
+        c = np.asarray(self.rotation.center, dtype=float)
+        Q = self.rotation.matrix(t) @ self.rotation.matrix(t_from).T
+        return (x - self.offset(t_from) - c) @ Q.T + c + self.offset(t)
+
+    def increments(self, x: np.ndarray, t_from: float, t: float) -> np.ndarray:
+        """:meth:`transfer` minus the points (the translation itself, exactly, without a rotation)."""
+        x = np.asarray(x, dtype=float)
+        if self.rotation is None:
+            return np.broadcast_to(self.offset(t) - self.offset(t_from), x.shape).copy()
+        return self.transfer(x, t_from, t) - x
 
 
 SWEEP_RESCALING = 0.999
@@ -149,7 +174,7 @@ def ray_hits(origins: np.ndarray, direction: np.ndarray, triangles: np.ndarray) 
 
     Args:
         origins: Shape ``(m, 3)``.
-        direction: Shape ``(3,)``.
+        direction: Shape ``(3,)``, or one unit vector per origin, ``(m, 3)``.
         triangles: Corner positions, shape ``(f, 3, 3)``.
     """
     out = np.full(len(origins), np.inf)
@@ -159,17 +184,19 @@ def ray_hits(origins: np.ndarray, direction: np.ndarray, triangles: np.ndarray) 
     a = triangles[:, 0]
     e1 = triangles[:, 1] - a
     e2 = triangles[:, 2] - a
-    p = np.cross(direction, e2)  # (f, 3)
-    det = np.einsum("fi,fi->f", e1, p)
-    ok = np.abs(det) > 1e-300
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    directions = np.broadcast_to(np.asarray(direction, dtype=float), origins.shape)
     chunk = max(1, 2_000_000 // max(1, len(triangles)))
     for start in range(0, len(origins), chunk):
         o = origins[start : start + chunk]
+        d = directions[start : start + chunk]
+        p = np.cross(d[:, None, :], e2[None, :, :])  # (m, f, 3)
+        det = np.einsum("fi,mfi->mf", e1, p)
+        ok = np.abs(det) > 1e-300
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
         s = o[:, None, :] - a[None, :, :]  # (m, f, 3)
-        b1 = np.einsum("mfi,fi->mf", s, p) * inv
+        b1 = np.einsum("mfi,mfi->mf", s, p) * inv
         q = np.cross(s, e1[None, :, :])
-        b2 = np.einsum("mfi,i->mf", q, direction) * inv
+        b2 = np.einsum("mfi,mi->mf", q, d) * inv
         t = np.einsum("mfi,fi->mf", q, e2) * inv
         inside = ok & (b1 >= 0.0) & (b2 >= 0.0) & (b1 + b2 <= 1.0) & (t >= 0.0)
         t = np.where(inside, t, np.inf)
@@ -404,30 +431,40 @@ class MeshBarrier:
         r"""This rank's surface nodes the tool's move from ``t_from`` to now would overrun: ``(dofs, increments)``.
 
         Relative to the tool, a node moves by :math:`-\Delta` (the tool's
-        translation): it is overrun where that ray hits a tool triangle (at
-        ``t_from``) within :math:`|\Delta|/s`, i.e. where it would keep less
-        than :math:`1 - s` of its distance along the way (Möller–Trumbore, all
-        owned nodes against all tool triangles). Moved by :math:`\Delta` with
-        the tool it keeps its position relative to the tool exactly.
+        translation; with a rotation, each node's own rigid increment
+        :math:`\Delta_a`, taken as a straight line): it is overrun where that ray
+        hits a tool triangle (at ``t_from``) within :math:`|\Delta|/s`, i.e.
+        where it would keep less than :math:`1 - s` of its distance along the
+        way (Möller–Trumbore, all owned nodes against all tool triangles).
+        Moved rigidly with the tool it keeps its position relative to the tool
+        exactly.
         """
         empty = (self.surface.dofs[:0], np.zeros((0, 3)))
         if self.tool is None or not len(self.surface.rows):
             return empty
-        shift = self.tool.offset(self.time) - self.tool.offset(t_from)
-        length = float(np.linalg.norm(shift))
-        if length == 0.0:
-            return empty
-        reach = length / float(self.step_filter.safety)
-        direction = shift / length
         body = self.surface.positions(u)  # collective: every rank calls carried()
         tool = self.tool.vertices(t_from)
+        shift = self.tool.increments(body, t_from, self.time)  # each node moved with the tool
+        tool_shift = self.tool.increments(tool, t_from, self.time)
+        length = np.linalg.norm(shift, axis=1)
+        tool_length = np.linalg.norm(tool_shift, axis=1)
+        if not np.any(length > 0.0) and not np.any(tool_length > 0.0):
+            return empty
+        safety = float(self.step_filter.safety)
+
+        def unit(v: np.ndarray, n: np.ndarray) -> np.ndarray:
+            return np.divide(v, n[:, None], out=np.zeros_like(v), where=n[:, None] > 0.0)
+
         overrun = np.zeros(self.surface.size, dtype=bool)
-        overrun[self.surface.rows] = ray_hits(body[self.surface.rows], -direction, tool[self.tool.faces])[0] < reach
+        rows = self.surface.rows
+        hit = ray_hits(body[rows], -unit(shift[rows], length[rows]), tool[self.tool.faces])[0]
+        overrun[rows] = (hit < length[rows] / safety) & (length[rows] > 0.0)
         # A tool vertex that would cross a body triangle between its nodes: the triangle's nodes move with the tool.
-        distance, face = ray_hits(tool, direction, body[self.surface.faces])
-        overrun[self.surface.faces[face[distance < reach]].ravel()] = True
-        rows = np.flatnonzero(overrun[self.surface.rows])
-        return self.surface.dofs[rows], np.tile(shift, (len(rows), 1))
+        distance, face = ray_hits(tool, unit(tool_shift, tool_length), body[self.surface.faces])
+        crossing = (distance < tool_length / safety) & (tool_length > 0.0)
+        overrun[self.surface.faces[face[crossing]].ravel()] = True
+        mine = np.flatnonzero(overrun[self.surface.rows])
+        return self.surface.dofs[mine], shift[self.surface.rows[mine]]
 
     def carried_by_supports(self, u: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r"""This rank's free surface nodes pushed by prescribed ones: ``(dofs, increments)``.

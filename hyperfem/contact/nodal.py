@@ -25,9 +25,15 @@ normal force magnitudes :math:`\lambda_a = \kappa|b'(d_a(x^n))|`, the
 tangent projectors :math:`P_a = I - n_a n_a^T` (:math:`\lVert T_a^T v\rVert =
 \lVert P_a v\rVert` for an orthonormal tangent basis :math:`T_a`) and
 :math:`x^n` itself, so :math:`D` is a conservative potential within the
-step. :math:`\epsilon` (``friction_epsilon``, a slip length: quasi-static
+step. The slip is relative to the obstacle's surface: the point
+:math:`x_a^n` is carried with the obstacle's rigid motion (translation and
+rotation, :mod:`~hyperfem.contact.obstacles`) from the lag's time to now,
+:math:`x_a^n \to \Phi(x_a^n)`, and the slip is :math:`P_a(x_a - \Phi(x_a^n))`
+(a rough ball turned about its centre drags the nodes it holds; a plane or a
+ball pushed along its normal slips nothing). :math:`\Phi` is fixed within a
+solve, so the derivatives below are unchanged. :math:`\epsilon` (``friction_epsilon``, a slip length: quasi-static
 IPC's :math:`\epsilon_v\,\Delta t`) is the slip below which the node sticks
-elastically. With :math:`w = P_a\Delta_a`, :math:`y = \lVert w\rVert` and
+elastically. With :math:`w = P_a(x_a - \Phi(x_a^n))`, :math:`y = \lVert w\rVert` and
 :math:`g(y) = f_0'(y)/y` (:math:`2/\epsilon - y/\epsilon^2`, or :math:`1/y`),
 the gradient is :math:`\mu\lambda_a g\,w` and the Hessian
 :math:`\mu\lambda_a(g P_a + g'(y)/y\; w w^T)`, whose eigenvalues in the tangent
@@ -103,8 +109,8 @@ class NodalBarrier:
     r"""The Coulomb coefficient :math:`\mu` (0: frictionless)."""
     friction_epsilon: float = 0.0
     r"""The smoothing slip :math:`\epsilon` of :math:`f_0`."""
-    _lagged: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-    _pending: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    _lagged: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+    _pending: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
 
     def _init_friction(self, contact: Any) -> None:
         r"""Set :math:`\mu` and :math:`\epsilon` from the contact (after ``dhat``)."""
@@ -133,14 +139,20 @@ class NodalBarrier:
         lam[rows] = self.stiffness * np.abs(barrier_derivatives(d[rows], self.dhat)[0])
         n = self.normals(u)
         P = np.eye(n.shape[1])[None, :, :] - np.einsum("mi,mj->mij", n, n)
-        self._pending = (lam, P, self.nodes.positions(u).copy())
+        self._pending = (lam, P, self.nodes.positions(u).copy(), self.time)
 
     def _slips(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        r"""Rows with :math:`\lambda_a > 0`, their :math:`\mu\lambda_a`, tangential slips :math:`w` and :math:`|w|`."""
+        r"""Rows with :math:`\lambda_a > 0`, their :math:`\mu\lambda_a`, tangential slips :math:`w` and :math:`|w|`.
+
+        The slip is relative to the obstacle: :math:`x_a^n` is carried with the obstacle's rigid motion from the
+        lag's time to now (module docstring).
+        """
         assert self._lagged is not None
-        lam, P, x0 = self._lagged
+        lam, P, x0, t0 = self._lagged
         rows = np.flatnonzero(lam > 0.0)
-        w = np.einsum("mij,mj->mi", P[rows], self.nodes.positions(u)[rows] - x0[rows])
+        obstacle = getattr(self, "obstacle", None)
+        start = x0[rows] if obstacle is None or t0 == self.time else obstacle.transfer(x0[rows], t0, self.time)
+        w = np.einsum("mij,mj->mi", P[rows], self.nodes.positions(u)[rows] - start)
         return rows, self.mu * lam[rows], w, np.linalg.norm(w, axis=1)
 
     def friction_energy(self, u: np.ndarray) -> float:
@@ -206,25 +218,30 @@ class NodalBarrier:
         return rows, first, second
 
     def carried(self, u: np.ndarray, t_from: float) -> tuple[np.ndarray, np.ndarray]:
-        r"""The nodes the obstacle's move from ``t_from`` to now would overrun, and its translation.
+        r"""The nodes the obstacle's move from ``t_from`` to now would overrun, and their increments.
 
         Returns ``(dofs, increments)``.
 
-        A node is overrun where, left in place while the obstacle translates by
-        :math:`\Delta p`, it would keep less than :math:`1 - s` of its distance
-        (the collision filter's rule); moved by :math:`\Delta p` with the
-        obstacle it keeps its distance exactly. The solver's predictor
+        A node is overrun where, left in place while the obstacle moves (by
+        :math:`\Delta p`, or rigidly with a rotation:
+        :meth:`~hyperfem.contact.obstacles.RigidPlacement.transfer`), it would
+        keep less than :math:`1 - s` of its distance (the collision filter's
+        rule); moved rigidly with the obstacle it keeps its distance exactly. The solver's predictor
         prescribes these increments (:meth:`~hyperfem.solver.external.ExternalTerms.carry`).
         """
         obstacle = getattr(self, "obstacle", None)
         dim = self.nodes.X.shape[1]
-        shift = np.zeros(dim) if obstacle is None else obstacle.origin(self.time) - obstacle.origin(t_from)
-        if not np.any(shift) or not len(self.nodes.dofs):
-            return self.nodes.dofs[:0], np.zeros((0, len(shift)))
+        empty = self.nodes.dofs[:0], np.zeros((0, dim))
+        if obstacle is None or not len(self.nodes.dofs):
+            return empty
+        x = self.nodes.positions(u)
+        shift = obstacle.increments(x, t_from, self.time)  # a translation, or a rigid motion with a rotation
+        if not np.any(shift):
+            return empty
         moved = np.array(u, copy=True)
         moved[self.nodes.dofs] += shift
         rows = np.flatnonzero(self.distances(u) < (1.0 - self.contact.safety) * self.distances(moved))
-        return self.nodes.dofs[rows], np.tile(shift, (len(rows), 1))
+        return self.nodes.dofs[rows], shift[rows]
 
     def admissible(self, u: np.ndarray) -> str:
         """``""``, or which owned node is on or through the obstacle and its distance."""

@@ -1,4 +1,4 @@
-r"""Rigid obstacles of contact: a half-space (a plane) and a ball (a sphere), with a prescribed translation.
+r"""Rigid obstacles of contact: a half-space, a ball and a cylinder, with a prescribed translation and rotation.
 
 The obstacle :math:`\{x : (x - p(t))\cdot n < 0\}` with the unit outward
 normal :math:`n` and the point
@@ -16,6 +16,24 @@ outside; an infinite :class:`Cylinder` of radius :math:`R` about the axis
 through :math:`c(t)` along the unit :math:`a` gives
 :math:`d(x) = |P(x - c(t))| - R`, :math:`P = I - a a^T`. Triangulated tools
 are :class:`~hyperfem.contact.ToolContact`.
+
+**Rotation.** A ball and a cylinder (and a tool,
+:class:`~hyperfem.contact.mesh_barrier.RigidSurface`) may also turn: a
+:class:`~hyperfem.loading.RigidRotation` (unit axis :math:`\hat a_r`, pivot
+:math:`c_r`, angle :math:`\theta(t)`) is composed with the translation, the
+rotation first, about the pivot in the obstacle's reference placement, which
+then travels with the translation:
+
+.. math::
+    x(t) = R\bigl(\theta(t)\,\hat a_r\bigr)(X - c_r) + c_r + f(t)\,m,
+
+so the cylinder's axis point is :math:`c(t) = R(c_0 - c_r) + c_r + f(t)m`
+and its axis :math:`a(t) = R a_0`. A ball turned about its own centre does
+not change its shape; its surface moves all the same, which matters with
+friction (the slip is taken relative to the obstacle's surface,
+:mod:`~hyperfem.contact.nodal`). :meth:`Ball.transfer` maps points rigidly
+from the placement at one time to the placement at another (the predictor
+carries nodes with it).
 """
 
 from __future__ import annotations
@@ -26,10 +44,80 @@ from dataclasses import dataclass
 import numpy as np
 
 from hyperfem.errors import ParameterError
+from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.validation import check_callable, check_finite_vector, check_positive
 
-__all__ = ["Ball", "Cylinder", "HalfSpace", "check_ball", "check_plane"]
+__all__ = ["Ball", "Cylinder", "HalfSpace", "RigidPlacement", "check_ball", "check_plane", "check_rotation"]
+
+
+def check_rotation(rotation: object, dim: int, where: str) -> RigidRotation | None:
+    r"""``rotation`` if it is ``None`` or a :class:`~hyperfem.loading.RigidRotation` of a 3D obstacle with a finite
+    :math:`\theta(0)`; a one-line error otherwise.
+
+    Raises:
+        ParameterError: Not a ``RigidRotation``, a 2D obstacle, or :math:`\theta(0)` not a finite number.
+    """
+    if rotation is None:
+        return None
+    if not isinstance(rotation, RigidRotation):
+        raise ParameterError(
+            f"{where}: rotation must be a hyperfem.loading.RigidRotation(axis, angle, center), got {rotation!r}"
+        )
+    if dim != 3:
+        raise ParameterError(f"{where}: a rotation needs a 3D obstacle, got {dim} components")
+    try:
+        rotation.matrix(0.0)
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: rotation {str(exc).removeprefix('RigidRotation: ')}") from None
+    return rotation
+
+
+class RigidPlacement:
+    r"""The rigid motion of an obstacle, :math:`x(t) = R(t)(X - c_r) + c_r + f(t)\,m` (module docstring).
+
+    Mixed into the obstacles; reads their ``motion``, ``profile`` and ``rotation``.
+    """
+
+    motion: Sequence[float] | None
+    profile: Callable[[float], float]
+    rotation: RigidRotation | None = None
+
+    def translation(self, t: float) -> np.ndarray | float:
+        r""":math:`f(t)\,m` (0 where the obstacle does not translate)."""
+        if self.motion is None:
+            return 0.0
+        return float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+
+    def turn(self, t: float) -> np.ndarray | None:
+        r""":math:`R(\theta(t))`, or ``None`` without a rotation."""
+        return None if self.rotation is None else self.rotation.matrix(t)
+
+    def place(self, points: np.ndarray | Sequence[float], t: float) -> np.ndarray:
+        """Points of the reference placement (``(m, dim)`` or ``(dim,)``) where they are at time ``t``."""
+        x = np.asarray(points, dtype=float)
+        if self.rotation is not None:
+            x = self.rotation.rotate(x, t)
+        return x + self.translation(t)
+
+    def transfer(self, points: np.ndarray, t_from: float, t: float) -> np.ndarray:
+        r"""Points moved rigidly with the obstacle from its placement at ``t_from`` to its placement at ``t``.
+
+        :math:`x' = R(t)R(t_0)^T(x - c_r - s_0) + c_r + s`, :math:`s` the translations.
+        """
+        x = np.asarray(points, dtype=float)
+        if self.rotation is None:
+            return x + (self.translation(t) - self.translation(t_from))
+        c = np.asarray(self.rotation.center, dtype=float)
+        Q = self.rotation.matrix(t) @ self.rotation.matrix(t_from).T
+        return (x - self.translation(t_from) - c) @ Q.T + c + self.translation(t)
+
+    def increments(self, points: np.ndarray, t_from: float, t: float) -> np.ndarray:
+        """:meth:`transfer` minus the points, ``(m, dim)`` (the translation itself, exactly, without a rotation)."""
+        x = np.asarray(points, dtype=float)
+        if self.rotation is None:
+            return np.broadcast_to(self.translation(t) - self.translation(t_from), x.shape).copy()
+        return self.transfer(x, t_from, t) - x
 
 
 def check_plane(
@@ -55,7 +143,7 @@ def check_plane(
 
 
 @dataclass(frozen=True)
-class HalfSpace:
+class HalfSpace(RigidPlacement):
     r"""A rigid half-space with outward normal ``normal`` through ``point``, translated by ``profile(t)·motion``.
 
     Attributes:
@@ -90,10 +178,7 @@ class HalfSpace:
 
     def origin(self, t: float) -> np.ndarray:
         """The point :math:`p(t) = p_0 + f(t)\\,m` of the plane at time (load factor) ``t``."""
-        p = np.asarray(self.point, dtype=float)
-        if self.motion is None:
-            return p
-        return p + float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+        return self.place(self.point, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
         r""":math:`(x - p(t))\cdot n` of points ``x`` (shape ``(m, dim)``): positive on the body's side."""
@@ -121,24 +206,29 @@ def check_ball(
 
 
 @dataclass(frozen=True)
-class Ball:
-    r"""A rigid ball of radius ``radius`` centred at ``center``, translated by ``profile(t)·motion``.
+class Ball(RigidPlacement):
+    r"""A rigid ball of radius ``radius`` centred at ``center``, turned by ``rotation`` and translated by
+    ``profile(t)·motion``.
 
     Attributes:
-        center: The centre :math:`c_0` at :math:`t` with ``profile(t) = 0``.
+        center: The centre :math:`c_0` at :math:`t` with ``profile(t) = 0`` and no rotation.
         radius: :math:`R > 0`.
         motion: The translation :math:`m` (``None``: the ball does not move).
         profile: :math:`f(t)` of the translation (default: the load factor).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` composed with the translation (module docstring;
+            ``None``: it does not turn).
     """
 
     center: Sequence[float]
     radius: float
     motion: Sequence[float] | None = None
     profile: Callable[[float], float] = linear_profile
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         c, r, m = check_ball(self.center, self.radius, self.motion, "Ball")
         check_callable(self.profile, "Ball", "profile")
+        check_rotation(self.rotation, len(c), "Ball")
         object.__setattr__(self, "center", c)
         object.__setattr__(self, "radius", r)
         object.__setattr__(self, "motion", m)
@@ -149,11 +239,8 @@ class Ball:
         return len(self.center)
 
     def origin(self, t: float) -> np.ndarray:
-        """The centre :math:`c(t) = c_0 + f(t)\\,m` at time (load factor) ``t``."""
-        c = np.asarray(self.center, dtype=float)
-        if self.motion is None:
-            return c
-        return c + float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+        """The centre :math:`c(t) = R(t)(c_0 - c_r) + c_r + f(t)\\,m` at time (load factor) ``t``."""
+        return self.place(self.center, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
         r""":math:`|x - c(t)| - R` of points ``x`` (shape ``(m, dim)``): positive outside."""
@@ -161,7 +248,7 @@ class Ball:
 
 
 @dataclass(frozen=True)
-class Cylinder:
+class Cylinder(RigidPlacement):
     r"""A rigid infinite cylinder (a roller, a rod) of radius ``radius`` about the axis through ``point``.
 
     Attributes:
@@ -170,6 +257,8 @@ class Cylinder:
         radius: :math:`R > 0`.
         motion: The translation :math:`m` (``None``: it stays).
         profile: :math:`f(t)` of the translation (default: the load factor).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` composed with the translation: it turns the axis
+            (module docstring; ``None``: it does not turn).
     """
 
     point: Sequence[float]
@@ -177,6 +266,7 @@ class Cylinder:
     radius: float
     motion: Sequence[float] | None = None
     profile: Callable[[float], float] = linear_profile
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         c, r, m = check_ball(self.point, self.radius, self.motion, "Cylinder")
@@ -186,6 +276,7 @@ class Cylinder:
         if not float(np.linalg.norm(a)) > 0.0:
             raise ParameterError(f"Cylinder: axis must be a non-zero vector, got {a}")
         check_callable(self.profile, "Cylinder", "profile")
+        check_rotation(self.rotation, 3, "Cylinder")
         object.__setattr__(self, "point", c)
         object.__setattr__(self, "axis", a)
         object.__setattr__(self, "radius", r)
@@ -204,18 +295,25 @@ class Cylinder:
 
     @property
     def projector(self) -> np.ndarray:
-        """:math:`P = I - a a^T`, the projection onto the plane normal to the axis."""
+        """:math:`P = I - a a^T`, the projection onto the plane normal to the axis (in the reference placement)."""
         a = self.unit_axis
         return np.eye(3) - np.outer(a, a)
 
+    def axis_at(self, t: float) -> np.ndarray:
+        """The unit axis :math:`a(t) = R(t)\\,a_0` at time (load factor) ``t``."""
+        R = self.turn(t)
+        return self.unit_axis if R is None else R @ self.unit_axis
+
+    def projector_at(self, t: float) -> np.ndarray:
+        """:math:`P(t) = I - a(t) a(t)^T`."""
+        a = self.axis_at(t)
+        return np.eye(3) - np.outer(a, a)
+
     def origin(self, t: float) -> np.ndarray:
-        """The axis point :math:`c(t) = c_0 + f(t)\\,m` at time (load factor) ``t``."""
-        c = np.asarray(self.point, dtype=float)
-        if self.motion is None:
-            return c
-        return c + float(self.profile(t)) * np.asarray(self.motion, dtype=float)
+        """The axis point :math:`c(t) = R(t)(c_0 - c_r) + c_r + f(t)\\,m` at time (load factor) ``t``."""
+        return self.place(self.point, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
-        r""":math:`|P(x - c(t))| - R` of points ``x`` (shape ``(m, 3)``): positive outside."""
-        q = (np.asarray(x, dtype=float) - self.origin(t)) @ self.projector
+        r""":math:`|P(t)(x - c(t))| - R` of points ``x`` (shape ``(m, 3)``): positive outside."""
+        q = (np.asarray(x, dtype=float) - self.origin(t)) @ self.projector_at(t)
         return np.linalg.norm(q, axis=1) - float(self.radius)

@@ -2,7 +2,7 @@ r"""Frictionless contact of a body with a rigid sphere (an indenter, a spherical
 
 :class:`SphereContact` names the boundary that may touch and the ball
 (:class:`~hyperfem.contact.obstacles.Ball`: centre, radius, an optional
-prescribed translation); :meth:`SphereContact.bind` gives the
+prescribed translation and rotation); :meth:`SphereContact.bind` gives the
 :class:`SphereBarrier` of a problem, the term
 
 .. math::
@@ -47,8 +47,9 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import Ball, check_ball
+from hyperfem.contact.obstacles import Ball, check_ball, check_rotation
 from hyperfem.errors import ParameterError
+from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_name
@@ -83,6 +84,9 @@ class SphereContact:
             step as in IPC (:mod:`~hyperfem.contact.nodal`).
         friction_epsilon: The slip length :math:`\epsilon > 0` below which a node sticks elastically
             (``None``: :math:`0.1\,\hat d`).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` of the ball, composed with the translation
+            (:mod:`~hyperfem.contact.obstacles`; ``None``: it does not turn). About its own centre it changes
+            nothing but the friction's slip, which is taken relative to the ball's surface.
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` is not installed
@@ -100,11 +104,13 @@ class SphereContact:
     name: str = "contact"
     friction: float = 0.0
     friction_epsilon: float | None = None
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         check_name(self.boundary, "boundary", "SphereContact")
         where = f"SphereContact on {self.boundary!r}"
         c, r, m = check_ball(self.center, self.radius, self.motion, where)
+        check_rotation(self.rotation, len(c), where)
         object.__setattr__(self, "center", c)
         object.__setattr__(self, "radius", r)
         object.__setattr__(self, "motion", m)
@@ -116,7 +122,7 @@ class SphereContact:
     @property
     def obstacle(self) -> Ball:
         """The sphere as a :class:`~hyperfem.contact.obstacles.Ball`."""
-        return Ball(self.center, self.radius, self.motion, self.profile)
+        return Ball(self.center, self.radius, self.motion, self.profile, self.rotation)
 
     def bind(self, problem: SolidProblem) -> SphereBarrier:
         """The barrier of this contact on ``problem`` (collective).

@@ -4,7 +4,9 @@ r"""A rigid triangulated tool (a surgical instrument, an indenter, a jaw) read f
 touch and the tool's surface: triangles read from an STL, OBJ, PLY, VTK/VTU
 or gmsh file (meshio; every triangle block of the file), or given as arrays
 (:meth:`ToolContact.from_arrays`), translated by ``profile(t)·motion`` (as
-for the plane and the sphere). :meth:`~ToolContact.bind` gives a
+for the plane and the sphere) and optionally turned by a ``rotation``
+(a :class:`~hyperfem.loading.RigidRotation` about a pivot, composed with the
+translation). :meth:`~ToolContact.bind` gives a
 :class:`~hyperfem.contact.mesh_barrier.MeshBarrier` whose collision mesh is
 the body's surface plus the tool's triangles, the tool's vertices static
 within a solve (no dofs; no tool–tool pairs): point–triangle and edge–edge
@@ -30,9 +32,11 @@ import numpy as np
 from hyperfem.contact.bodies import surface_defaults
 from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.mesh_barrier import MeshBarrier, RigidSurface
+from hyperfem.contact.obstacles import check_rotation
 from hyperfem.contact.settings import check_boundaries, check_contact_settings
 from hyperfem.contact.surface import contact_surface
 from hyperfem.errors import MeshError, ParameterError
+from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_finite_vector
@@ -90,6 +94,9 @@ class ToolContact:
         name: Prefix of the output columns.
         points: The tool's points (instead of ``file``).
         triangles: The tool's triangles (instead of ``file``).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` of the tool about a pivot of its placed points
+            (after ``offset`` and ``scale``), composed with the translation: :math:`x(t) = R(\theta(t))(X - c_r)
+            + c_r + s(t)` (``None``: it does not turn; :mod:`~hyperfem.contact.obstacles`).
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` not installed.
@@ -110,10 +117,12 @@ class ToolContact:
     friction_epsilon: float | None = None
     points: np.ndarray | None = None
     triangles: np.ndarray | None = None
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         names, where = check_boundaries(self.boundaries, "ToolContact")
         object.__setattr__(self, "boundaries", tuple(names))
+        check_rotation(self.rotation, 3, where)
         if callable(self.motion):
             start = np.asarray(self.motion(0.0), dtype=float)
             if start.shape != (3,) or not np.all(np.isfinite(start)):
@@ -165,7 +174,7 @@ class ToolContact:
         """The tool as a :class:`~hyperfem.contact.mesh_barrier.RigidSurface`."""
         assert self.points is not None and self.triangles is not None
         motion = self.motion if self.motion is None or callable(self.motion) else np.asarray(self.motion, dtype=float)
-        return RigidSurface(self.points, self.triangles, motion, self.profile)
+        return RigidSurface(self.points, self.triangles, motion, self.profile, self.rotation)
 
     def bind(self, problem: SolidProblem) -> MeshBarrier:
         """The barrier of this contact on ``problem`` (collective).

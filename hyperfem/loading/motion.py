@@ -73,10 +73,29 @@ class RigidRotation:
             raise ParameterError(f"RigidRotation: angle must be a callable angle(t), got {self.angle!r}")
 
     def __call__(self, x: np.ndarray, t: float) -> np.ndarray:
-        R = rotation_matrix(self.axis, float(self.angle(t)))
+        R = self.matrix(t)
         c = np.asarray(self.center, dtype=float).reshape(3, 1)
         X = x[:3]
         return R @ (X - c) + c - X
+
+    def matrix(self, t: float) -> np.ndarray:
+        r"""The rotation :math:`R(\theta(t)\,\hat a)` at time ``t``, shape ``(3, 3)``.
+
+        Raises:
+            ParameterError: :math:`\theta(t)` is not a finite number (one line).
+        """
+        try:
+            angle = float(self.angle(t))
+        except (TypeError, ValueError):
+            raise ParameterError(f"RigidRotation: angle({t:g}) must be a finite number") from None
+        if not math.isfinite(angle):
+            raise ParameterError(f"RigidRotation: angle({t:g}) must be a finite number, got {angle!r}")
+        return rotation_matrix(self.axis, angle)
+
+    def rotate(self, points: np.ndarray, t: float) -> np.ndarray:
+        r""":math:`R(\theta(t))(x - c) + c` of points ``x`` of shape ``(m, 3)`` (or one point, ``(3,)``)."""
+        c = np.asarray(self.center, dtype=float)
+        return (np.asarray(points, dtype=float) - c) @ self.matrix(t).T + c
 
 
 def rotating_surface(
