@@ -23,3 +23,7 @@ __all__ += ["MeshQuality", "MeshQualityWarning", "mesh_quality", "quality_report
 from hyperfem.mesh.blocks import BLOCKS_GROUPS, stacked_blocks_mesh, write_stacked_blocks_mesh  # noqa: E402
 
 __all__ += ["BLOCKS_GROUPS", "stacked_blocks_mesh", "write_stacked_blocks_mesh"]
+
+from hyperfem.mesh.shell import SHELL_GROUPS, spherical_shell_mesh, write_spherical_shell_mesh  # noqa: E402
+
+__all__ += ["SHELL_GROUPS", "spherical_shell_mesh", "write_spherical_shell_mesh"]

@@ -64,3 +64,6 @@ __all__ += ["StepFilter", "exact_filter_applies"]
 from hyperfem.solver.projected import ProjectedTangent, projected_newton_solver  # noqa: E402
 
 __all__ += ["ProjectedTangent", "projected_newton_solver"]
+from hyperfem.solver.arc_length import ArcLength, ArcLengthRecord, continue_arc_length, count_negative_pivots  # noqa: E402
+
+__all__ += ["ArcLength", "ArcLengthRecord", "continue_arc_length", "count_negative_pivots"]

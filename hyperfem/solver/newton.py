@@ -589,6 +589,11 @@ class NewtonSolver:
             return _LINEAR
         return self._roundoff(snes, it, norms)
 
+    @property
+    def nonlinear_problem(self) -> fpetsc.NonlinearProblem:
+        """The DOLFINx problem whose SNES this solver drives (its ``x``, ``b`` and matrices; e.g. for continuation)."""
+        return self._nlp
+
     # -- state -------------------------------------------------------------
     def refresh(self) -> None:
         """Run the state hooks at the current ``problem.u``."""

@@ -1,0 +1,678 @@
+r"""Arc-length continuation: follow an equilibrium path through limit points, with the load factor as an unknown.
+
+A ramp of the load factor :math:`\lambda` (:func:`~hyperfem.solver.solve_quasistatic`)
+stops at a limit point: past the maximum of the pressure of an inflated
+balloon there is no equilibrium at a larger pressure. Continuation makes
+:math:`\lambda` an unknown and adds one equation, the *arc-length constraint*
+(Riks 1979; Crisfield 1981, the spherical form with a load scaling
+:math:`\psi`):
+
+.. math::
+    R(u, \lambda) = 0, \qquad
+    c(\Delta u, \Delta\lambda) = \Delta u\cdot\Delta u + \psi^2 s^2\,\Delta\lambda^2 - \Delta\ell^2 = 0,
+
+with :math:`\Delta u, \Delta\lambda` the increments since the last converged
+state, :math:`\Delta u\cdot\Delta u` over the displacement entries only (the
+pressure and volume of the mixed problem do not enter),
+:math:`s = \lVert \mathrm d u/\mathrm d\lambda\rVert` at the start of the run (so that
+:math:`\psi` is dimensionless: :math:`\psi = 1` weighs load and displacement
+alike at the start, :math:`\psi = 0` is Crisfield's cylindrical form).
+
+**The load vector.** :math:`q = \partial R/\partial\lambda` at fixed :math:`u` is
+the central difference of the assembled residual in the problem's time,
+exact to round-off for loads linear in :math:`\lambda` (the usual ramp).
+It is taken on the solver's own residual, so dead, follower and pressure
+loads and prescribed displacements that move with :math:`\lambda` all enter:
+on a Dirichlet row the residual is :math:`u_D - g(\lambda)`, so
+:math:`q_D = -g'(\lambda)`, and the lifting of the interior rows carries
+:math:`K_{fD}\,g'`; the solve :math:`K w = q` then gives the whole path
+tangent :math:`\mathrm du/\mathrm d\lambda = -w`, boundary rows included.
+
+**Predictor.** :math:`\Delta u = \Delta\lambda\,t` with :math:`t = -K^{-1}q` and
+:math:`\Delta\lambda = \pm\Delta\ell/\sqrt{t\cdot t + \psi^2 s^2}`; the sign
+continues the previous increment (the sign of
+:math:`t\cdot\Delta u_\text{prev} + \psi^2 s^2\Delta\lambda_\text{prev}`), which
+turns back at a limit point without a determinant.
+
+**Corrector** (Crisfield): each iteration solves :math:`K a = R` and
+:math:`K w = q` with one factorisation, so :math:`\delta u = -a - \delta\lambda\,w`,
+and :math:`\delta\lambda` is the root of the quadratic
+:math:`c(\Delta u + \delta u, \Delta\lambda + \delta\lambda) = 0` closest in
+direction to the current increment (no real root: the point of the line
+closest to the constraint). The bordered system is regular at a limit
+point, where :math:`K` alone is singular.
+
+**Merit function and line search.** On the constraint the solution is a
+saddle point of :math:`\Pi(u) - \lambda W(u)` in :math:`(u, \lambda)`, not a
+minimum, so the energy cannot judge a step (the energy line search of
+:class:`~hyperfem.solver.NewtonSolver` is not used here). The merit is the
+norm of the bordered residual,
+:math:`m = \lVert R_f\rVert/\lVert q_f\rVert + |c|/\Delta\ell^2` (:math:`f`: the
+rows without Dirichlet conditions): the step is a Newton direction of that
+system, so it descends :math:`m`; the step is halved until :math:`m` does
+not grow. The solver's step filters come first, so no accepted iterate
+inverts an element (the exact inversion-free filter, the :math:`J` check).
+
+**Step control.** The arc length :math:`\Delta\ell` starts from the first
+load increment (``increment``, in load-factor units, converted with the
+first predictor), is scaled by :math:`\sqrt{N_d/N}` after each step
+(:math:`N` Newton iterations, :math:`N_d` = ``target_iterations``, the factor
+in [1/2, 2]) within the bounds, and cut back on failure. A run stops when
+the load factor passes ``end`` (or falls below ``min_load``), when ``stop``
+says so, or after ``max_steps`` steps.
+
+**Limit and bifurcation points.** A limit point lies between two steps
+whose load increments have opposite signs (its load factor is located by a
+parabola through the three states around it, in arc length). With
+``inertia``, every converged tangent is factorised once more as
+:math:`LDL^T` (MUMPS) to count its negative pivots (Sylvester's law of
+inertia: the negative eigenvalues; the symmetric part of a follower
+tangent): a change without a turn of the load is a bifurcation point, and a
+state with more negative pivots than the start is unstable under load
+control (the descending branch of a pressure maximum is). A three-field
+problem's pivots include its pressure block: the count at the start is the
+reference.
+
+**Scope.** Contact (external energies) is refused: the barrier's obstacles
+move with the time, which continuation leaves free; not yet available.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, cast
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc as fpetsc
+
+from hyperfem.errors import ConvergenceError, ParameterError
+from hyperfem.solver.filters import NoAdmissibleStep
+from hyperfem.solver.newton import NewtonSolver, SolveRecord
+from hyperfem.solver.state import assign_state
+from hyperfem.solver.stepping import StepRecord, _displacement_dofs
+from hyperfem.validation import check_count, check_finite_scalar, check_positive
+
+__all__ = ["ArcLength", "ArcLengthRecord", "continue_arc_length", "count_negative_pivots"]
+
+_CONVERGED = int(PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS)
+_DIVERGED_ITS = int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)
+_DIVERGED_LINEAR = int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE)
+_DIVERGED_DOMAIN = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
+_DIVERGED_LS = int(PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH)
+_REASONS = {
+    _CONVERGED: "CONVERGED_FNORM_ABS",
+    _DIVERGED_ITS: "DIVERGED_MAX_IT",
+    _DIVERGED_LINEAR: "DIVERGED_LINEAR_SOLVE",
+    _DIVERGED_DOMAIN: "DIVERGED_FUNCTION_DOMAIN",
+    _DIVERGED_LS: "DIVERGED_LINE_SEARCH",
+}
+MAX_HALVINGS = 6
+"""Halvings of a corrector step whose merit grew before the attempt fails (and the arc length is cut back)."""
+
+
+def _norm(v: PETSc.Vec) -> float:
+    """The 2-norm of ``v`` (collective)."""
+    return float(v.norm())  # type: ignore[arg-type]  # petsc4py stubs: the 2-norm is a float
+
+
+# -- settings -----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ArcLength:
+    r"""Settings of arc-length continuation (module docstring).
+
+    Attributes:
+        increment: First load-factor increment (sets the first arc length), > 0.
+        min_increment: Smallest arc length, in load-factor units of the first
+            step (default ``increment / 1024``); below it the run fails.
+        max_increment: Largest arc length, likewise (default ``4 increment``).
+        psi: Load scaling :math:`\psi \ge 0` (1: spherical, load and
+            displacement weighed alike at the start; 0: cylindrical).
+        end: Stop once the load factor passes it (``None``: no such stop).
+        min_load: Stop once the load factor falls below it (``None``: no such stop).
+        max_steps: Accepted steps before the run stops.
+        max_attempts: Attempts (accepted and cut back) before the run fails.
+        target_iterations: Corrector iterations the arc length adapts to.
+        max_iterations: Corrector iterations before an attempt fails.
+        rtol: Convergence: :math:`\lVert R_f\rVert \le` ``rtol`` :math:`\lVert q_f\rVert + ` ``atol``
+            (:math:`q_f`: the load vector at :math:`\lambda = 1` scale, the
+            reference load of Riks' method).
+        atol: Absolute residual tolerance.
+        cutback: Factor in (0, 1) applied to the arc length of a failed attempt.
+        inertia: Count the negative pivots of every converged tangent (an
+            :math:`LDL^T` factorisation per step, MUMPS); ``None``: when the
+            problem has at most ``INERTIA_LIMIT`` unknowns.
+        direction: +1 or -1: the sign of the first load increment.
+    """
+
+    increment: float = 0.1
+    min_increment: float | None = None
+    max_increment: float | None = None
+    psi: float = 1.0
+    end: float | None = 1.0
+    min_load: float | None = None
+    max_steps: int = 200
+    max_attempts: int = 2000
+    target_iterations: int = 5
+    max_iterations: int = 25
+    rtol: float = 1e-9
+    atol: float = 1e-12
+    cutback: float = 0.5
+    inertia: bool | None = None
+    direction: int = 1
+
+    def __post_init__(self) -> None:
+        where = "ArcLength"
+        check_positive("increment", self.increment, where)
+        for name in ("min_increment", "max_increment", "end", "min_load"):
+            if getattr(self, name) is not None:
+                check_finite_scalar(getattr(self, name), where, name)
+        if not self.min_step <= self.increment <= self.max_step or self.min_step <= 0:
+            raise ParameterError(
+                f"{where}: need 0 < min_increment <= increment <= max_increment, got "
+                f"{self.min_step}, {self.increment}, {self.max_step}"
+            )
+        check_finite_scalar(self.psi, where, "psi")
+        if self.psi < 0:
+            raise ParameterError(f"{where}: psi must be >= 0, got {self.psi!r}")
+        for name in ("max_steps", "max_attempts", "target_iterations", "max_iterations"):
+            check_count(name, getattr(self, name), where)
+        check_positive("rtol", self.rtol, where)
+        check_finite_scalar(self.atol, where, "atol")
+        if self.atol < 0:
+            raise ParameterError(f"{where}: atol must be >= 0, got {self.atol!r}")
+        if not (isinstance(self.cutback, (int, float)) and 0 < self.cutback < 1):
+            raise ParameterError(f"{where}: cutback must lie in (0, 1), got {self.cutback!r}")
+        if self.direction not in (1, -1):
+            raise ParameterError(f"{where}: direction must be +1 or -1, got {self.direction!r}")
+        if self.end is not None and self.min_load is not None and not self.min_load < self.end:
+            raise ParameterError(f"{where}: need min_load < end, got {self.min_load} and {self.end}")
+
+    @property
+    def min_step(self) -> float:
+        """Effective ``min_increment``."""
+        return self.min_increment if self.min_increment is not None else self.increment / 2**10
+
+    @property
+    def max_step(self) -> float:
+        """Effective ``max_increment``."""
+        return self.max_increment if self.max_increment is not None else 4 * self.increment
+
+
+INERTIA_LIMIT = 200_000
+"""Unknowns up to which ``ArcLength(inertia=None)`` counts negative pivots (one extra factorisation per step)."""
+
+
+# -- records ------------------------------------------------------------------------------
+@dataclass
+class ArcLengthRecord(StepRecord):
+    """An accepted continuation step (``time`` is the load factor reached, ``dt`` its increment).
+
+    Attributes:
+        arc_length: The arc length :math:`\\Delta\\ell` of the step.
+        negative_pivots: Negative pivots of the converged tangent (``-1``: not counted).
+        stable: Whether the state has no more negative pivots than the start
+            (``None``: not counted).
+        limit_point: A limit point lies between the previous step and this one
+            (the load increment changed sign).
+        limit_load: The located load factor of that limit point (``nan`` if none).
+        bifurcation: The count of negative pivots changed without a turn of the load.
+    """
+
+    arc_length: float = 0.0
+    negative_pivots: int = -1
+    stable: bool | None = None
+    limit_point: bool = False
+    limit_load: float = float("nan")
+    bifurcation: bool = False
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable summary (without the solve records)."""
+        out = super().as_dict()
+        out.update(
+            arc_length=self.arc_length,
+            negative_pivots=self.negative_pivots,
+            stable=self.stable,
+            limit_point=self.limit_point,
+            limit_load=self.limit_load,
+            bifurcation=self.bifurcation,
+        )
+        return out
+
+
+# -- inertia ------------------------------------------------------------------------------
+def count_negative_pivots(A: PETSc.Mat) -> int:
+    """Negative pivots of an :math:`LDL^T` factorisation of (the symmetric part of) ``A`` (MUMPS; collective).
+
+    By Sylvester's law of inertia, the number of negative eigenvalues of the
+    symmetric matrix. Dirichlet rows (identity rows) count as positive.
+
+    Raises:
+        ParameterError: MUMPS is not available or the factorisation failed.
+    """
+    comm = A.getComm()
+    B = A.copy()
+    B.setOption(PETSc.Mat.Option.SYMMETRIC, True)  # type: ignore[arg-type]  # petsc4py stubs: the enum is an int
+    B.setOption(PETSc.Mat.Option.SPD, False)  # type: ignore[arg-type]
+    ksp = PETSc.KSP().create(comm)
+    try:
+        ksp.setOperators(B)
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("cholesky")
+        pc.setFactorSolverType("mumps")
+        pc.setFactorSetUpSolverType()
+        factor = pc.getFactorMatrix()
+        factor.setMumpsIcntl(24, 1)  # null-pivot detection: a singular tangent still factorises
+        factor.setMumpsIcntl(13, 1)  # the root node factorised in serial: INFOG(12) counts every pivot
+        pc.setUp()
+        return int(factor.getMumpsInfog(12))
+    except PETSc.Error:
+        raise ParameterError(
+            "count_negative_pivots: the LDL^T factorisation (MUMPS) of the tangent failed"
+        ) from None
+    finally:
+        ksp.destroy()
+        B.destroy()
+
+
+# -- the continuation ---------------------------------------------------------------------
+@dataclass
+class _Path:
+    """What the continuation carries from step to step."""
+
+    arc: float
+    scale2: float  # psi^2 s^2
+    tangent: PETSc.Vec  # w = K^-1 q at the accepted state (the path tangent is -w)
+    sign: float  # the sign of the load increment of the next predictor (the direction of travel)
+    slope: float  # dλ/ds at the accepted state, in the direction of travel
+    negative0: int = -1
+    negative_prev: int = -1
+    attempts: int = 0
+
+
+class _Continuation:
+    """The bordered Newton iteration on a :class:`~hyperfem.solver.NewtonSolver`'s assembly and linear solver."""
+
+    def __init__(self, solver: NewtonSolver, settings: ArcLength) -> None:
+        if solver.external:
+            raise ParameterError(
+                "continue_arc_length: contact (external energies) with arc-length continuation is not available yet"
+            )
+        self.solver = solver
+        self.settings = settings
+        self.problem = solver.problem
+        self.comm = self.problem.domain.comm
+        nlp = solver.nonlinear_problem
+        self.snes = solver.snes
+        self.ksp = self.snes.getKSP()
+        A, P, _ = cast(tuple[PETSc.Mat, PETSc.Mat, Any], self.snes.getJacobian())
+        self.A, self.P = A, P
+        self.x = nlp.x
+        self.r = nlp.b.duplicate()
+        self.q = nlp.b.duplicate()
+        self.work = nlp.b.duplicate()
+        self.a = nlp.b.duplicate()
+        self.w = nlp.b.duplicate()
+        self.y = nlp.b.duplicate()
+        n = self.x.getSize()
+        self.inertia = settings.inertia if settings.inertia is not None else n <= INERTIA_LIMIT
+        self._disp = _displacement_dofs(self.problem)
+        self.q_norm = 0.0
+
+    def close(self) -> None:
+        for v in (self.r, self.q, self.work, self.a, self.w, self.y):
+            v.destroy()
+
+    # -- vectors ---------------------------------------------------------------------------
+    def disp(self, v: PETSc.Vec) -> np.ndarray:
+        """This rank's owned displacement entries of ``v`` (a copy)."""
+        a = v.getArray(readonly=True)
+        return np.array(a if self._disp is None else a[self._disp])
+
+    def dot(self, a: np.ndarray, b: np.ndarray) -> float:
+        return float(self.comm.allreduce(float(a @ b), op=MPI.SUM))
+
+    def free_norm(self, v: PETSc.Vec) -> float:
+        """Norm of ``v`` without its Dirichlet rows."""
+        v.copy(self.work)
+        fpetsc.set_bc(self.work, self.problem.bcs, alpha=0.0)
+        return _norm(self.work)
+
+    def load_state(self, lam: float) -> None:
+        """``x`` from ``problem.u``; loads at ``lam``."""
+        self.problem.u.x.petsc_vec.copy(self.x)
+        self.problem.set_time(lam)
+
+    # -- assembly --------------------------------------------------------------------------
+    def residual(self, lam: float, out: PETSc.Vec) -> None:
+        self.problem.set_time(lam)
+        self.snes.computeFunction(self.x, out)
+
+    def load_vector(self, lam: float) -> None:
+        """``q`` = dR/dλ at ``x`` by a central difference in the load factor (exact for linear ramps)."""
+        h = 1e-6 * max(1.0, abs(lam))
+        self.residual(lam + h, self.q)
+        self.residual(lam - h, self.work)
+        self.q.axpy(-1.0, self.work)
+        self.q.scale(1.0 / (2 * h))
+        self.problem.set_time(lam)
+
+    def tangent(self, lam: float) -> None:
+        self.problem.set_time(lam)
+        self.snes.computeJacobian(self.x, self.A, self.P)
+        self.ksp.setOperators(self.A, self.P)
+
+    def solve(self, rhs: PETSc.Vec, out: PETSc.Vec) -> bool:
+        self.ksp.solve(rhs, out)
+        return int(self.ksp.getConvergedReason()) > 0 and math.isfinite(_norm(out))  # type: ignore[call-overload]
+
+    def set_x(self, x0: np.ndarray, du: PETSc.Vec, scale: float) -> None:
+        """``x = x0 + scale du`` (owned entries; ghosts updated by the next assembly)."""
+        arr = self.x.getArray()
+        arr[:] = x0 + scale * du.getArray(readonly=True)
+        self.x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)  # type: ignore[arg-type]
+
+    # -- one step --------------------------------------------------------------------------
+    def tangent_direction(self, lam: float) -> bool:
+        """``w`` = K⁻¹q at ``x`` (the path tangent is ``-w``); the tangent assembled and factorised."""
+        self.load_vector(lam)
+        self.tangent(lam)
+        return self.solve(self.q, self.w)
+
+    def constraint(self, du: np.ndarray, dlam: float, path: _Path) -> float:
+        return self.dot(du, du) + path.scale2 * dlam**2 - path.arc**2
+
+    def merit(self, lam: float, du: np.ndarray, dlam: float, path: _Path) -> float:
+        self.residual(lam, self.r)
+        return self.free_norm(self.r) / self.q_norm + abs(self.constraint(du, dlam, path)) / path.arc**2
+
+    def attempt(self, lam0: float, path: _Path) -> tuple[SolveRecord, float, np.ndarray]:
+        """One attempt of a step of arc length ``path.arc`` from the state in ``x`` at ``lam0``.
+
+        Returns:
+            The record, the load increment and the displacement increment (owned entries).
+        """
+        s = self.settings
+        start = _time.perf_counter()
+        x0 = self.x.getArray(readonly=True).copy()
+        d0 = self.disp(self.x)
+        norms: list[float] = []
+
+        def record(reason: int, iterations: int, message: str = "") -> SolveRecord:
+            assign_state(self.x, self.problem.u)
+            self.problem.u.x.scatter_forward()
+            minJ = self.solver.min_J()
+            return SolveRecord(
+                converged=reason > 0 and bool(np.isfinite(minJ)),
+                reason=reason,
+                reason_name=_REASONS.get(reason, str(reason)),
+                iterations=iterations,
+                linear_iterations=0,
+                residual_norms=norms,
+                wall_time=_time.perf_counter() - start,
+                min_J=minJ,
+                message=message,
+                linear_solver=self.solver.linear_solver_name,
+            )
+
+        t = self.disp(path.tangent)
+        dlam = path.sign * path.arc / math.sqrt(self.dot(t, t) + path.scale2)
+        # Predictor x0 - dlam w (shortened by the step filters: y = dlam w is the step x - y).
+        path.tangent.copy(self.y)
+        self.y.scale(dlam)
+        fraction, message = self.filter(self.y)
+        if message:
+            return record(_DIVERGED_DOMAIN, 0, f"predictor: {message}"), 0.0, d0 * 0
+        dlam *= fraction
+        self.set_x(x0, self.y, -1.0)
+        lam = lam0 + dlam
+        for it in range(s.max_iterations + 1):
+            self.residual(lam, self.r)
+            norm = self.free_norm(self.r)
+            norms.append(norm)
+            if not math.isfinite(norm):
+                return record(int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF), it, "residual NaN/inf"), 0.0, d0 * 0
+            du = self.disp(self.x) - d0
+            if norm <= s.rtol * self.q_norm + s.atol and it > 0:
+                out = record(_CONVERGED, it)
+                if out.converged:
+                    out.indicators, why = self.problem.check_solution()
+                    if why:
+                        out.converged, out.reason, out.reason_name, out.message = (
+                            False, _DIVERGED_DOMAIN, _REASONS[_DIVERGED_DOMAIN], why,
+                        )
+                return out, lam - lam0, du
+            if it == s.max_iterations:
+                break
+            # Newton: K a = R, K w = q; δu = -a - δλ w; δλ from the constraint.
+            if not self.tangent_direction(lam) or not self.solve(self.r, self.a):
+                return record(_DIVERGED_LINEAR, it, "corrector: the tangent solve failed"), 0.0, du
+            da, dw = self.disp(self.a), self.disp(self.w)
+            dlam_step = self.root(du - da, -dw, lam - lam0, path)
+            # y = a + δλ w, the step x - y
+            self.a.copy(self.y)
+            self.y.axpy(dlam_step, self.w)
+            fraction, message = self.filter(self.y)
+            if message:
+                return record(_DIVERGED_DOMAIN, it, message), 0.0, du
+            dlam_step *= fraction
+            accepted, lam = self.line_search(lam, lam0, d0, dlam_step, path)
+            if not accepted:
+                return record(_DIVERGED_LS, it + 1, "corrector: the merit did not decrease"), 0.0, du
+        return record(_DIVERGED_ITS, s.max_iterations), 0.0, self.disp(self.x) - d0
+
+    def root(self, base: np.ndarray, dirn: np.ndarray, dlam: float, path: _Path) -> float:
+        """δλ with c(base + δλ dirn, dlam + δλ) = 0, the root closest in direction to (base, dlam)."""
+        a1 = self.dot(dirn, dirn) + path.scale2
+        a2 = 2 * (self.dot(dirn, base) + path.scale2 * dlam)
+        a3 = self.dot(base, base) + path.scale2 * dlam**2 - path.arc**2
+        disc = a2 * a2 - 4 * a1 * a3
+        if disc < 0:
+            return -a2 / (2 * a1)  # no real root: the point of the line closest to the constraint
+        sq = math.sqrt(disc)
+        roots = ((-a2 + sq) / (2 * a1), (-a2 - sq) / (2 * a1))
+        # The new increment closest in direction to the current one (Crisfield's angle criterion).
+        bb = self.dot(base, base) + path.scale2 * dlam**2
+        bd = self.dot(base, dirn) + path.scale2 * dlam
+        return max(roots, key=lambda r: bb + r * bd)
+
+    def filter(self, y: PETSc.Vec) -> tuple[float, str]:
+        """The solver's step filters on the step ``x - y`` (inversion, ...): the fraction kept, or why none is."""
+        try:
+            return self.solver.step_filters.apply(self.x, y), ""
+        except NoAdmissibleStep as refusal:
+            return 0.0, str(refusal)
+
+    def line_search(self, lam: float, lam0: float, d0: np.ndarray, dlam: float, path: _Path) -> tuple[bool, float]:
+        """Backtrack ``x - α y``, ``λ + α δλ`` until the merit does not grow; whether a step was taken."""
+        xk = self.x.getArray(readonly=True).copy()
+        c0 = self.constraint(self.disp(self.x) - d0, lam - lam0, path)
+        m0 = self.free_norm(self.r) / self.q_norm + abs(c0) / path.arc**2
+        alpha = 1.0
+        for _ in range(MAX_HALVINGS + 1):
+            self.set_x(xk, self.y, -alpha)
+            trial = lam + alpha * dlam
+            if self.merit(trial, self.disp(self.x) - d0, trial - lam0, path) <= m0 * (1 + 1e-10):
+                return True, trial
+            alpha *= 0.5
+        self.set_x(xk, self.y, 0.0)
+        return False, lam
+
+    # -- at an accepted state --------------------------------------------------------------
+    def settle(self, lam: float, du: np.ndarray, dlam: float, path: _Path) -> tuple[bool, int]:
+        """At a converged state: the tangent for the next predictor, the direction of travel, the pivots.
+
+        Returns:
+            Whether the load turned within the step (a limit point), and the
+            negative pivots of the tangent (``-1``: not counted).
+
+        Raises:
+            ConvergenceError: The tangent solve failed.
+        """
+        if not self.tangent_direction(lam):
+            raise ConvergenceError(f"arc-length continuation: the tangent solve failed at λ = {lam:g}", lam)
+        self.w.copy(path.tangent)
+        t = self.disp(path.tangent)
+        # The next predictor continues this step's increment: the sign of (-t, 1)·(Δu, ψ²s²Δλ).
+        sign = -1.0 if -self.dot(t, du) + path.scale2 * dlam < 0 else 1.0
+        turned = sign != path.sign
+        path.sign = sign
+        path.slope = sign / math.sqrt(self.dot(t, t) + path.scale2)
+        return turned, count_negative_pivots(self.A) if self.inertia else -1
+
+
+def _hermite_extremum(lam0: float, lam1: float, slope0: float, slope1: float) -> float:
+    r"""The extremum of the cubic Hermite interpolant of :math:`\lambda` over a step.
+
+    ``slope0``/``slope1`` are :math:`\mathrm d\lambda/\mathrm d\tau` at the ends of
+    :math:`\tau \in [0, 1]` (of opposite signs at a limit point).
+    """
+    # λ(τ) = a τ³ + b τ² + c τ + d
+    d, c = lam0, slope0
+    a = 2 * (lam0 - lam1) + slope0 + slope1
+    b = 3 * (lam1 - lam0) - 2 * slope0 - slope1
+    roots = [r.real for r in np.roots([3 * a, 2 * b, c]) if abs(r.imag) < 1e-12 and -1e-9 <= r.real <= 1 + 1e-9]
+    if not roots:
+        return max(lam0, lam1, key=abs)
+    values = [((a * r + b) * r + c) * r + d for r in roots]
+    return float(max(values) if slope0 > 0 else min(values))
+
+
+def continue_arc_length(
+    solver: NewtonSolver,
+    settings: ArcLength | None = None,
+    on_step: Callable[[ArcLengthRecord], None] | None = None,
+    stop: Callable[[ArcLengthRecord], bool] | None = None,
+) -> list[ArcLengthRecord]:
+    r"""Follow the equilibrium path of ``solver.problem`` from its current state by arc-length continuation.
+
+    The problem's time is the load factor :math:`\lambda`: every load and
+    prescribed displacement keeps its profile, and :math:`\lambda` goes where
+    the path leads (up, through a maximum, down). The start should be an
+    equilibrium (the unloaded state, or a converged ramp).
+
+    Args:
+        solver: A :class:`~hyperfem.solver.NewtonSolver` on the problem (its
+            assembly, linear solver and step filters are used).
+        settings: The continuation settings (default :class:`ArcLength`).
+        on_step: Called after every accepted step (output).
+        stop: Called after every accepted step; ``True`` ends the run (e.g. a
+            probe displacement reached).
+
+    Returns:
+        The accepted steps; ``problem.u`` and ``problem.time`` hold the last.
+
+    Raises:
+        ConvergenceError: The arc length fell below its minimum, or
+            ``max_attempts`` were spent; ``time`` is the last load factor
+            reached and ``history`` the accepted steps (the state is the last one).
+        ParameterError: A solver with contact, or a problem whose loads and
+            prescribed displacements do not change with the load factor.
+    """
+    s = ArcLength() if settings is None else settings
+    run = _Continuation(solver, s)
+    problem = solver.problem
+    lam = float(problem.time)
+    history: list[ArcLengthRecord] = []
+    tangent = run.w.duplicate()
+    try:
+        path = _start(run, lam, tangent)
+        factor = math.sqrt(run.dot(run.disp(tangent), run.disp(tangent)) + path.scale2)
+        path.arc = s.increment * factor  # arc length per unit load increment at the start, times the increment
+        arc_min, arc_max = s.min_step * factor, s.max_step * factor
+        while len(history) < s.max_steps:
+            start = _time.perf_counter()
+            saved = problem.u.x.array.copy()
+            failed: list[SolveRecord] = []
+            while True:
+                path.attempts += 1
+                if path.attempts > s.max_attempts:
+                    raise ConvergenceError(
+                        f"arc-length continuation exceeded {s.max_attempts} attempts at λ = {lam:g}", lam, history
+                    )
+                run.load_state(lam)
+                record, dlam, du = run.attempt(lam, path)
+                if record.converged:
+                    break
+                failed.append(record)
+                problem.u.x.array[:] = saved
+                problem.set_time(lam)
+                path.arc *= s.cutback
+                if path.arc < arc_min * (1 - 1e-12):
+                    raise ConvergenceError(
+                        f"arc-length continuation failed at λ = {lam:g}: arc length {path.arc / factor:g} "
+                        f"(in load-factor units) below the minimum {s.min_step:g} (SNES {record.reason_name}"
+                        f"{': ' + record.message if record.message else ''}, min J {record.min_J:.3g})",
+                        lam,
+                        history,
+                    )
+            slope0, arc = path.slope, path.arc
+            turned, negative = run.settle(lam + dlam, du, dlam, path)
+            limit = float("nan")
+            if turned:
+                limit = _hermite_extremum(lam, lam + dlam, slope0 * arc, path.slope * arc)
+            lam += dlam
+            step = ArcLengthRecord(
+                step=len(history) + 1,
+                time=lam,
+                dt=dlam,
+                solve_records=[record],
+                failed=failed,
+                solves=1 + len(failed),
+                rejected=len(failed),
+                wall_time=_time.perf_counter() - start,
+                arc_length=arc,
+                negative_pivots=negative,
+                stable=None if negative < 0 else negative <= path.negative0,
+                limit_point=turned,
+                limit_load=limit,
+                bifurcation=negative >= 0 and path.negative_prev >= 0 and negative != path.negative_prev and not turned,
+            )
+            path.negative_prev = negative
+            ratio = math.sqrt(s.target_iterations / max(1, record.iterations))
+            path.arc = min(max(path.arc * min(2.0, max(0.5, ratio)), arc_min), arc_max)
+            history.append(step)
+            if on_step is not None:
+                on_step(step)
+            if stop is not None and stop(step):
+                break
+            if s.end is not None and (lam - s.end) * s.direction >= 0:
+                break
+            if s.min_load is not None and lam < s.min_load:
+                break
+    finally:
+        run.close()
+        tangent.destroy()
+    return history
+
+
+def _start(run: _Continuation, lam: float, tangent: PETSc.Vec) -> _Path:
+    """The reference load, the tangent and the pivots at the start state (collective)."""
+    s = run.settings
+    run.load_state(lam)
+    run.load_vector(lam)
+    run.q_norm = run.free_norm(run.q)
+    if not _norm(run.q) > 0:
+        raise ParameterError(
+            "continue_arc_length: no load or prescribed displacement changes with the load factor "
+            f"(dR/dλ = 0 at λ = {lam:g}); nothing to follow"
+        )
+    if not run.q_norm > 0:
+        run.q_norm = 1.0  # prescribed displacements only: the residual is judged in force units as it is
+    if not run.tangent_direction(lam):
+        raise ConvergenceError(f"continue_arc_length: the tangent solve failed at the start (λ = {lam:g})", lam)
+    run.w.copy(tangent)
+    t = run.disp(tangent)
+    tt = run.dot(t, t)
+    scale2 = s.psi**2 * tt
+    path = _Path(arc=0.0, scale2=scale2, tangent=tangent, sign=float(s.direction),
+                 slope=s.direction / math.sqrt(tt + scale2))
+    if run.inertia:
+        path.negative0 = path.negative_prev = count_negative_pivots(run.A)
+    return path

@@ -1,0 +1,179 @@
+r"""Arc-length continuation (issue 22): through limit points, against closed forms, with the pivots counted.
+
+* **Inflated thick-walled sphere** (:mod:`hyperfem.cases.instability`,
+  A = 1, B = 2, one eighth, three-field P2/P1, h = 0.5, K = 10³μ): the
+  pressure–inner-stretch path follows the closed form through the maximum
+  to :math:`\lambda_a \ge 2.5` (within 0.6 % at every step here; 0.30 % at
+  h = 0.35, measured), the limit point is found once and located at
+  :math:`p/\mu = 0.8175` against 0.8164 (0.016 % at h = 0.35), and the
+  tangent gains exactly one negative pivot past it (unstable under pressure
+  control), on 1 and 2 ranks.
+* **Shallow clamped arch** under its weight: the full snap-through path,
+  load maximum, descending branch, minimum; the located limit loads agree
+  for arc lengths a factor 2 apart (1.67352 and 1.67342 measured) and the
+  pivots go 0 → 1 → 0.
+* **Prescribed displacement** as the only load: the path is the homogeneous
+  uniaxial stretch, with the Dirichlet rows moved with :math:`\lambda`.
+* The pivot count against dense eigenvalues; bad settings and refused set-ups.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import hyperfem as hf
+from hyperfem.cases.instability import SPHERE_PRESSURE_MAXIMUM, inflated_sphere, shallow_arch, sphere_pressure
+from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
+from hyperfem.errors import ParameterError
+from hyperfem.materials.neo_hookean import neo_hookean
+from hyperfem.materials.parameters import LameParameters
+from hyperfem.problem import HyperelasticProblem
+from hyperfem.solver import ArcLength, NewtonSolver, continue_arc_length, count_negative_pivots
+
+
+def test_sphere_inflation_through_the_pressure_maximum():
+    case = inflated_sphere(h=0.5)
+    stretches: list[float] = []
+
+    def on_step(record):
+        stretches.append(case.inner_stretch())
+
+    history = continue_arc_length(
+        NewtonSolver(case.problem),
+        ArcLength(increment=0.1, end=None, max_steps=40),
+        on_step=on_step,
+        stop=lambda record: stretches[-1] >= 2.5,
+    )
+    assert stretches[-1] >= 2.5
+    loads = np.array([r.time for r in history])
+    closed = sphere_pressure(np.array(stretches))
+    assert np.max(np.abs(loads - closed) / closed) < 0.01
+    assert np.all(np.diff(stretches) > 0)  # the balloon keeps growing, the pressure turns
+    limits = [r for r in history if r.limit_point]
+    assert len(limits) == 1
+    p_max, la_max = SPHERE_PRESSURE_MAXIMUM
+    assert abs(limits[0].limit_load - p_max) / p_max < 0.005
+    k = history.index(limits[0])
+    assert max(loads) >= limits[0].time and abs(max(loads) - limits[0].limit_load) < 2e-3
+    assert all(r.dt > 0 for r in history[:k]) and all(r.dt < 0 for r in history[k + 1 :])
+    # One more negative pivot past the maximum: stable before it, unstable after.
+    negatives = [r.negative_pivots for r in history]
+    assert all(r.stable for r in history[:k]) and not any(r.stable for r in history[k:])
+    assert set(negatives[k:]) == {negatives[0] + 1}
+    assert not any(r.bifurcation for r in history)
+
+
+def _run_arch(increment):
+    case = shallow_arch(rise=0.5, cells=16)
+    deflections: list[float] = []
+    history: list = []
+
+    def on_step(record):
+        history.append(record)
+        deflections.append(case.crown_deflection())
+
+    continue_arc_length(
+        NewtonSolver(case.problem),
+        ArcLength(increment=increment, end=None, max_steps=60),
+        on_step=on_step,
+        stop=lambda r: sum(h.limit_point for h in history) >= 2,
+    )
+    return history, np.array(deflections)
+
+
+def test_arch_snaps_through_with_step_size_independent_limit_loads():
+    coarse, d_coarse = _run_arch(0.2)
+    fine, d_fine = _run_arch(0.1)
+    for history, deflection in ((coarse, d_coarse), (fine, d_fine)):
+        limits = [r for r in history if r.limit_point]
+        assert len(limits) == 2
+        top, bottom = limits
+        assert top.limit_load > bottom.limit_load > 0
+        # The descending branch lies between them; the crown moves down all along.
+        i, j = history.index(top), history.index(bottom)
+        assert all(r.dt < 0 for r in history[i + 1 : j]) and j - i >= 2
+        assert np.all(np.diff(deflection) < 0)
+        assert [r.negative_pivots for r in (history[0], top, bottom)] == [0, 1, 0]
+    for a, b in zip(
+        [r.limit_load for r in coarse if r.limit_point], [r.limit_load for r in fine if r.limit_point], strict=True
+    ):
+        assert abs(a - b) / b < 1e-3
+    # Regression (this mesh and settings, a run on 1 and 2 ranks): the maximum and the minimum of the path.
+    assert [r.limit_load for r in fine if r.limit_point] == pytest.approx([1.67352, 0.810462], rel=2e-4)
+
+
+def test_prescribed_displacement_path_is_the_homogeneous_stretch():
+    domain = unit_cube(2)
+    params = LameParameters.from_youngs(10.0, 0.3)
+    problem = HyperelasticProblem(domain, lambda F: neo_hookean(F, params), bcs=uniaxial_rollers(1.5))
+    probe = hf.io.probes.PointProbe(domain.mesh, [[1.0, 1.0, 1.0], [0.5, 0.5, 0.5]])
+    seen = []
+    history = continue_arc_length(
+        NewtonSolver(problem), ArcLength(increment=0.25, end=1.0), on_step=lambda r: seen.append(probe(problem.u))
+    )
+    assert history[-1].time >= 1.0
+    for record, values in zip(history, seen, strict=True):
+        # u_x = λ (stretch - 1) x, homogeneous; the corner and the centre agree.
+        assert values[0, 0] == pytest.approx(0.5 * record.time, abs=1e-9)
+        assert values[1, 0] == pytest.approx(0.25 * record.time, abs=1e-9)
+        assert values[0, 1] == pytest.approx(2 * values[1, 1], abs=1e-9)
+    assert all(r.dt > 0 for r in history) and not any(r.limit_point for r in history)
+
+
+def test_negative_pivots_against_dense_eigenvalues():
+    comm = MPI.COMM_WORLD
+    n = 12
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((n, n))
+    M = M + M.T + np.diag(np.linspace(-6.0, 6.0, n))
+    A = PETSc.Mat().createAIJ([n, n], comm=comm)
+    A.setUp()
+    start, end = A.getOwnershipRange()
+    for i in range(start, end):
+        A.setValues(i, range(n), M[i])
+    A.assemble()
+    try:
+        assert count_negative_pivots(A) == int(np.sum(np.linalg.eigvalsh(M) < 0))
+    finally:
+        A.destroy()
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"increment": 0.0},
+        {"increment": 0.1, "min_increment": 0.2},
+        {"increment": 0.1, "max_increment": 0.05},
+        {"psi": -1.0},
+        {"psi": math.nan},
+        {"cutback": 1.0},
+        {"direction": 0},
+        {"max_steps": 0},
+        {"end": 0.0, "min_load": 1.0},
+    ],
+)
+def test_bad_settings_are_one_line_errors(kwargs):
+    with pytest.raises(ParameterError) as info:
+        ArcLength(**kwargs)
+    assert "\n" not in str(info.value) and "ArcLength" in str(info.value)
+
+
+def test_a_problem_without_moving_loads_is_refused():
+    domain = unit_cube(1)
+    params = LameParameters.from_youngs(10.0, 0.3)
+    problem = HyperelasticProblem(domain, lambda F: neo_hookean(F, params), bcs=uniaxial_rollers(1.0))
+    problem.bcs  # noqa: B018  (compiled)
+    with pytest.raises(ParameterError, match="nothing to follow"):
+        continue_arc_length(NewtonSolver(problem), ArcLength(increment=0.1))
+
+
+def test_shell_mesh_bad_input():
+    with pytest.raises(ParameterError, match="inner < outer"):
+        hf.mesh.spherical_shell_mesh(2.0, 1.0)
+    with pytest.raises(ParameterError, match="order"):
+        hf.mesh.spherical_shell_mesh(order=3)
