@@ -177,3 +177,19 @@ def test_shell_mesh_bad_input():
         hf.mesh.spherical_shell_mesh(2.0, 1.0)
     with pytest.raises(ParameterError, match="order"):
         hf.mesh.spherical_shell_mesh(order=3)
+
+
+def test_inflation_demo(shared_tmp, capsys):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parent.parent / "demos" / "inflation.py"
+    spec = importlib.util.spec_from_file_location("demo_inflation", path)
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    result = demo.main(["--sizes", "0.5", "--stretch", "2.0", "--output", str(shared_tmp)])
+    assert result["max_relative_errors"][0] < 0.01
+    assert abs(result["located_maxima"][0] - SPHERE_PRESSURE_MAXIMUM[0]) < 0.004
+    if MPI.COMM_WORLD.rank == 0:
+        assert (shared_tmp / "inflation.png").stat().st_size > 0
+        assert "maximum p/mu" in capsys.readouterr().out
