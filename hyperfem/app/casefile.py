@@ -164,12 +164,6 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
                     raise CaseFileError(
                         f"{m.key}: missing required key 'density' (a dynamic run needs the mass density)"
                     )
-        moving = [c for c in contacts if c.motion is not None]
-        if stepping.dynamic and stepping.scheme == "generalized_alpha" and moving:
-            raise CaseFileError(
-                f"{moving[0].key}.motion: a moving obstacle with scheme \"generalized_alpha\" is not available yet "
-                "(the obstacle would lag alpha_f dt behind the step); use \"backward_euler\" or \"newmark\""
-            )
         degree = problem.degree or (2 if problem.formulation == "mixed" else 1)
         if stepping.lumped_mass and degree != 1:
             raise CaseFileError(

@@ -137,6 +137,6 @@ class CylinderBarrier(SphereBarrier):
     def update(self, t: float) -> None:
         """Move (and turn) the cylinder to time (load factor) ``t``: its axis point and projector."""
         super().update(t)
-        self.projector = self.obstacle.projector_at(t)  # type: ignore[attr-defined]
+        self.projector = self.obstacle.projector_at(self.time)  # type: ignore[attr-defined]
         if hasattr(self, "step_filter"):
             self.step_filter.projector = self.projector

@@ -86,6 +86,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from hyperfem.contact.barrier import require_ipctk
+from hyperfem.contact.obstacles import obstacle_time
 from hyperfem.contact.settings import check_dhat_fits
 from hyperfem.contact.surface import ContactSurface
 from hyperfem.errors import ParameterError
@@ -292,8 +293,8 @@ class MeshBarrier:
 
     # -- states -------------------------------------------------------------
     def update(self, t: float) -> None:
-        """Move the tool (if any) to time (load factor) ``t``."""
-        self.time = float(t)
+        """Move the tool (if any) to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`)."""
+        self.time = obstacle_time(self.problem, t)
         if self.tool is not None:
             self._tool_now = self.tool.vertices(self.time)
         self._cache = None
@@ -442,6 +443,7 @@ class MeshBarrier:
         empty = (self.surface.dofs[:0], np.zeros((0, 3)))
         if self.tool is None or not len(self.surface.rows):
             return empty
+        t_from = obstacle_time(self.problem, t_from)  # where the tool was at the anchor
         body = self.surface.positions(u)  # collective: every rank calls carried()
         tool = self.tool.vertices(t_from)
         shift = self.tool.increments(body, t_from, self.time)  # each node moved with the tool
@@ -513,7 +515,7 @@ class MeshBarrier:
         V0 = self.surface.positions(u_from)
         V1 = self.surface.positions(u)
         if self.tool is not None:
-            V0 = np.vstack([V0, self.tool.vertices(t_from)])
+            V0 = np.vstack([V0, self.tool.vertices(obstacle_time(self.problem, t_from))])
             V1 = np.vstack([V1, self.tool.vertices(self.time)])
         fraction = float(self.ipctk.compute_collision_free_stepsize(self.mesh, _f(V0), _f(V1), 0.0,
                                                                     self.ipctk.HashGrid(), self._sweep_ccd))

@@ -59,6 +59,7 @@ from petsc4py import PETSc
 
 from hyperfem.contact.barrier import barrier, barrier_derivatives
 from hyperfem.contact.nodes import BoundaryNodes
+from hyperfem.contact.obstacles import obstacle_time
 from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
 
@@ -235,6 +236,7 @@ class NodalBarrier:
         if obstacle is None or not len(self.nodes.dofs):
             return empty
         x = self.nodes.positions(u)
+        t_from = obstacle_time(self.problem, t_from)  # where the obstacle was at the anchor
         shift = obstacle.increments(x, t_from, self.time)  # a translation, or a rigid motion with a rotation
         if not np.any(shift):
             return empty

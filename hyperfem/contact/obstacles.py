@@ -48,7 +48,33 @@ from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.validation import check_callable, check_finite_vector, check_positive
 
-__all__ = ["Ball", "Cylinder", "HalfSpace", "RigidPlacement", "check_ball", "check_plane", "check_rotation"]
+__all__ = [
+    "Ball",
+    "Cylinder",
+    "HalfSpace",
+    "RigidPlacement",
+    "check_ball",
+    "check_plane",
+    "check_rotation",
+    "obstacle_time",
+]
+
+
+def obstacle_time(problem: object, t: float) -> float:
+    r"""The time a prescribed obstacle is placed at when its barrier is moved to the load time ``t``.
+
+    The barrier :math:`E(u_{n+1})` enters the balance of a step unweighted, as
+    the Dirichlet values do, so a moving obstacle is where it is at the
+    Dirichlet time :math:`t_{n+1}`
+    (:meth:`~hyperfem.dynamics.IncrementalProblem.dirichlet_time`); the solver
+    moves its energies to the load time, :math:`t_{n+1-\alpha_f}` under
+    generalized-:math:`\alpha`. Placed there instead, the obstacle would lag
+    :math:`\alpha_f\Delta t` behind the state it keeps out: the end state of a
+    step would be intersection-free against an obstacle that has moved on. The
+    same time for every other problem and scheme.
+    """
+    mapping = getattr(problem, "dirichlet_time", None)
+    return float(t) if mapping is None else float(mapping(t))
 
 
 def check_rotation(rotation: object, dim: int, where: str) -> RigidRotation | None:

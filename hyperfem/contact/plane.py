@@ -49,7 +49,7 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import HalfSpace, check_plane
+from hyperfem.contact.obstacles import HalfSpace, check_plane, obstacle_time
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
@@ -170,9 +170,9 @@ class PlaneBarrier(NodalBarrier):
 
     # -- the ExternalEnergy contract ----------------------------------------
     def update(self, t: float) -> None:
-        """Move the plane to time (load factor) ``t``."""
-        self.time = float(t)
-        self._origin = self.obstacle.origin(t)
+        """Move the plane to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`)."""
+        self.time = obstacle_time(self.problem, t)
+        self._origin = self.obstacle.origin(self.time)
         self._refresh_lag()
 
     def distances(self, u: np.ndarray) -> np.ndarray:

@@ -47,7 +47,7 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import Ball, check_ball, check_rotation
+from hyperfem.contact.obstacles import Ball, check_ball, check_rotation, obstacle_time
 from hyperfem.errors import ParameterError
 from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
@@ -185,9 +185,9 @@ class SphereBarrier(NodalBarrier):
 
     # -- the ExternalEnergy contract ----------------------------------------
     def update(self, t: float) -> None:
-        """Move the sphere to time (load factor) ``t``."""
-        self.time = float(t)
-        self._center = self.obstacle.origin(t)
+        """Move the sphere to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`)."""
+        self.time = obstacle_time(self.problem, t)
+        self._center = self.obstacle.origin(self.time)
         self._refresh_lag()
 
     def _offsets(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -189,6 +189,9 @@ class IncrementalProblem:
         self.u = base.u
         self.V = base.u.function_space
         self.t_n = float(base.time)
+        # (t_loads, t_bcs) of the step being solved and of the last accepted one (dirichlet_time)
+        self._step_times: tuple[float, float] | None = None
+        self._accepted_times: tuple[float, float] | None = None
         self.damping = damping if damping is not None and damping.active else None
         if integrator.dynamic and density is None:
             raise ParameterError("IncrementalProblem: a dynamic scheme needs a MassDensity")
@@ -344,6 +347,21 @@ class IncrementalProblem:
         """Move the base problem's loads and updaters to ``t_loads``, its Dirichlet values to ``t_bcs``."""
         self.base.set_time(t_loads, t_bcs)
 
+    def dirichlet_time(self, t: float) -> float:
+        r"""The time of the Dirichlet values that goes with the load time ``t``: :math:`t_{n+1}` for the
+        :math:`t_{n+1-\alpha_f}` of the step being solved or of the last accepted one, ``t`` itself otherwise.
+
+        Prescribed motions that enter the balance unweighted, as the Dirichlet values do, read it: a rigid
+        obstacle's barrier :math:`E(u_{n+1})` is not taken at :math:`w_\alpha`, so the obstacle must be where it is
+        at :math:`t_{n+1}` (:mod:`hyperfem.contact`); the solver moves its external energies to
+        :attr:`time` (the loads'). Without :math:`\alpha_f` the two times are the same.
+        """
+        t = float(t)
+        for pair in (self._step_times, self._accepted_times):
+            if pair is not None and pair[0] == t:
+                return pair[1]
+        return t
+
     def check_solution(self) -> tuple[dict[str, float], str | None]:
         """The base problem's consistency indicators."""
         return self.base.check_solution()
@@ -397,7 +415,9 @@ class IncrementalProblem:
         self._B.value = B  # type: ignore[assignment]  # dolfinx: any array-like
         self._u_tilde.x.array[:] = u_tilde
         self._u_hat.x.array[:] = u_hat
-        self.base.set_time(t_new - float(integ.alpha_f) * dt, t_new)
+        t_loads = t_new - float(integ.alpha_f) * dt
+        self.base.set_time(t_loads, t_new)
+        self._step_times = (float(self.base.time), t_new)
         self.u.x.array[:] += dt * self.v.x.array
 
     def commit(self, dt: float, u_n: np.ndarray, v_n: np.ndarray, a_n: np.ndarray) -> None:
@@ -406,6 +426,7 @@ class IncrementalProblem:
         self.v.x.array[:] = self.displacement_block.restrict(v)
         self.a.x.array[:] = self.displacement_block.restrict(a)
         self.t_n += dt
+        self._accepted_times, self._step_times = self._step_times, None
         if self.integrator.alpha_f:
             self.base.set_time(self.t_n)
 
