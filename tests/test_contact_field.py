@@ -1,7 +1,8 @@
-"""The contact force and traction fields (issue 19 outputs): :class:`~hyperfem.contact.ContactField`.
+"""The contact force, traction and gap fields (issue 19 outputs): :class:`~hyperfem.contact.ContactField`.
 
 Their sums are the recorded totals: the nodal forces add up to ``<name>_force``, the tractions times the
-lumped areas too; the series is written as VTX frames.
+lumped areas too; the gap is the recorded smallest distance at the contact nodes and the distance to the
+obstacle away from it; the series is written as VTX frames.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ def _owned_sum(function) -> np.ndarray:
 @pytest.mark.parametrize("kind", ["plane", "tool"])
 def test_contact_field_sums_to_the_recorded_force(kind, shared_tmp):
     """The pressed cube: the field's nodal forces sum to the contact force, its tractions times the areas too; the
-    traction is the uniaxial stress (about 0.24 Pa here) on the bottom, its frames written."""
+    traction is the uniaxial stress (about 0.24 Pa here) on the bottom, the gap within dhat there; frames written."""
     problem = _block(n=3, delta=0.2)
     if kind == "plane":
         contact = PlaneContact("bottom", point=(0.0, 0.0, -DHAT / 2), normal=(0.0, 0.0, 1.0), dhat=DHAT)
@@ -50,6 +51,18 @@ def test_contact_field_sums_to_the_recorded_force(kind, shared_tmp):
     mean = MPI.COMM_WORLD.allreduce(float(inner.sum()), op=MPI.SUM) / MPI.COMM_WORLD.allreduce(len(inner), op=MPI.SUM)
     assert mean == pytest.approx(force[2], rel=0.3)  # the stress over the unit area: corners and edges differ
     assert summary["files"]["contact_vtx"].endswith(f"{kind}.bp") and (shared_tmp / f"{kind}.bp").is_dir()
+    # The gap: finite; on the bottom within (0, dhat], its smallest value the recorded min distance; on the top the
+    # distance to the plane (height 0.8 + dhat/2), or for the tool dhat (out of reach of every pair).
+    gap = field.gap.x.array
+    assert field.gap.name == "contact_gap" and np.all(np.isfinite(gap))
+    X = field.gap.function_space.tabulate_dof_coordinates()
+    comm = MPI.COMM_WORLD
+    bottom, top = gap[np.isclose(X[:, 2], 0.0)], gap[np.isclose(X[:, 2], 1.0)]
+    low = comm.allreduce(float(bottom.min()) if len(bottom) else np.inf, op=MPI.MIN)
+    high = comm.allreduce(float(bottom.max()) if len(bottom) else -np.inf, op=MPI.MAX)
+    assert low == pytest.approx(barrier.min_distance(), rel=1e-10) and 0.0 < low <= high <= DHAT
+    far = 0.8 + DHAT / 2 if kind == "plane" else DHAT
+    assert np.allclose(top, far, rtol=1e-10, atol=0.0)
 
 
 def test_case_files_write_the_contact_field_beside_the_fields():

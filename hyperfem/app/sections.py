@@ -696,7 +696,8 @@ OUTPUT = {
                      help="output folder, relative to the working folder (run --output replaces it); default "
                      "output/NAME"),
     "fields": Key("strings", choices=FIELDS, default=("displacement",),
-                  help="fields written for ParaView (FieldOutput fields); [] writes none"),
+                  help="fields written for ParaView (FieldOutput fields); with [[contact]] also NAME_contact.bp "
+                  "(contact_force, contact_traction, contact_gap: hyperfem.contact.ContactField); [] writes none"),
     "format": Key("string", choices=FORMATS, default="vtx", help="field file format: vtx (ADIOS2 .bp) or xdmf"),
     "times": Key("numbers", example=(0.5, 1.0),
                  help="write the fields at these load factors or times only; default every step"),

@@ -23,7 +23,7 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
 * Gluing: :class:`TieContact` (two groups of non-matching meshes held
   together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).
 * :class:`ContactField` (:mod:`~hyperfem.contact.field`): the nodal contact
-  force and traction of every contact as a VTX series for ParaView.
+  force, traction and gap of every contact as a VTX series for ParaView.
 * :mod:`~hyperfem.contact.barrier` (the nodal barrier function),
   :mod:`~hyperfem.contact.defaults` (:math:`\hat d`, :math:`\kappa`),
   :mod:`~hyperfem.contact.nodes` (contact nodes), :mod:`~hyperfem.contact.settings`

@@ -1,7 +1,7 @@
-r"""The contact forces as a field for ParaView: nodal force and traction of every contact, a VTX time series.
+r"""The contact forces and gaps as fields for ParaView: nodal force, traction and gap of every contact, a VTX series.
 
 :class:`ContactField` writes, at the initial state and after every step, two
-vector fields of the displacement's space:
+vector fields of the displacement's space and a scalar one of its scalar space:
 
 * ``contact_force`` — the force every contact (barrier and friction, or tie)
   exerts on each node, :math:`f_a = -\partial E/\partial x_a` summed over the
@@ -9,11 +9,20 @@ vector fields of the displacement's space:
 * ``contact_traction`` — :math:`t_a = f_a / A_a`, the force per reference area,
   with :math:`A_a = \int_\Gamma \phi_a\,dA` the lumped area of node :math:`a`
   over the contacts' boundary groups (zero where :math:`A_a = 0`), in Pa: the
-  contact pressure is its normal component, the friction stress the rest.
+  contact pressure is its normal component, the friction stress the rest;
+* ``contact_gap`` — the gap :math:`g_a`, in m, the smallest over the contacts of:
+  for a rigid obstacle (plane, sphere, cylinder) the signed distance of every
+  node of the body from it where it is now (the contact nodes' :math:`d_a`,
+  positive outside, so about :math:`\hat d` or less where the body touches
+  and the distance to the obstacle away from it); for mesh contact (self,
+  pair, tool) the smallest distance of the primitive pairs closer than
+  :math:`\hat d` a surface node belongs to, and :math:`\hat d` where it
+  belongs to none, as at every other node (out of reach: a gap belongs to a
+  pair of primitives, so away from contact it is capped there). A tie measures no gap: 0 where only
+  ties act.
 
 The forces are those the outputs sum (``<name>_force``), node by node: the
-two fields' integrals are the recorded totals. Gaps are not written: for
-mesh contact they belong to primitive pairs, not nodes.
+two force fields' integrals are the recorded totals.
 
 Example::
 
@@ -72,6 +81,14 @@ class ContactField(VTX):
         self._to_collapsed[self._parent] = np.arange(len(self._parent))
         self.force = fem.Function(space, name="contact_force")
         self.traction = fem.Function(space, name="contact_traction")
+        scalar, sub_map = space.sub(0).collapse()
+        bs = space.dofmap.index_map_bs
+        block = np.asarray(sub_map, dtype=np.int64).reshape(-1) // bs  # scalar dof -> the node's block (0.11: a list)
+        self._block_to_scalar = np.full(self.force.x.array.size // bs, -1, dtype=np.int64)
+        self._block_to_scalar[block] = np.arange(len(block))
+        self._scalar_blocks = block
+        self._points = scalar.tabulate_dof_coordinates()[:, : problem.domain.gdim]
+        self.gap = fem.Function(scalar, name="contact_gap")
         groups = sorted({name for b in self.barriers for name in _boundaries(b)})
         domain = problem.domain
         v = ufl.TestFunction(space)
@@ -84,7 +101,7 @@ class ContactField(VTX):
         n = len(areas.array_r)
         self._area[:n] = areas.array_r
         areas.destroy()
-        super().__init__(path, [self.force, self.traction], times=times, role="contact_vtx")
+        super().__init__(path, [self.force, self.traction, self.gap], times=times, role="contact_vtx")
 
     def _refresh(self) -> None:
         """The forces and tractions at the current state."""
@@ -102,3 +119,24 @@ class ContactField(VTX):
         traction[:owned] = np.divide(force[:owned], area, out=np.zeros(owned), where=area > 0.0)
         self.traction.x.array[:] = traction
         self.traction.x.scatter_forward()
+        self._refresh_gap(u)
+
+    def _refresh_gap(self, u: np.ndarray) -> None:
+        """The gaps at the current state (module docstring); collective (mesh contact evaluates its pairs)."""
+        gdim = self._points.shape[1]
+        bs = self.force.function_space.dofmap.index_map_bs
+        rows = self._scalar_blocks[:, None] * bs + np.arange(gdim)
+        x = self._points + u[self._parent[rows]]  # every node where it is now
+        gap = np.full(len(x), np.inf)
+        for barrier in self.barriers:
+            obstacle = getattr(barrier, "obstacle", None)
+            if obstacle is not None:
+                gap = np.minimum(gap, obstacle.signed_distance(x, barrier.time))
+            elif hasattr(barrier, "pair_gaps"):
+                dofs, values = barrier.pair_gaps(u)
+                mine = np.full(len(x), float(barrier.dhat))
+                scalar = self._block_to_scalar[self._to_collapsed[np.asarray(dofs)[:, 0]] // bs]
+                mine[scalar] = values
+                gap = np.minimum(gap, mine)
+        self.gap.x.array[:] = np.where(np.isfinite(gap), gap, 0.0)
+        self.gap.x.scatter_forward()

@@ -609,6 +609,22 @@ class MeshBarrier:
         r"""The smallest distance of a pair closer than :math:`\hat d` (``inf`` where none is)."""
         return self._min_distance(self.vertices(self._state(u)))
 
+    def pair_gaps(self, u: np.ndarray | PETSc.Vec | None = None) -> tuple[np.ndarray, np.ndarray]:
+        r"""Per owned surface node, the smallest distance of the pairs closer than :math:`\hat d` it belongs to.
+
+        :math:`\hat d` where it is in none (out of the barrier's reach: a gap belongs to a pair of primitives, the
+        node's is the closest of its pairs). Returns ``(dofs, gaps)``, shapes ``(m, 3)`` and ``(m,)``.
+        """
+        V = self.vertices(self._state(u))
+        collisions = self._collisions(V)
+        gaps = np.full(len(V), self.dhat)
+        for k in range(len(collisions)):
+            c = collisions[k]
+            ids = [int(v) for v in c.vertex_ids(self.mesh.edges, self.mesh.faces) if v >= 0]
+            d = float(np.sqrt(c.compute_distance(np.ascontiguousarray(V[ids].ravel()))))  # ipctk: squared
+            gaps[ids] = np.minimum(gaps[ids], d)
+        return self.surface.dofs, gaps[self.surface.rows]
+
     def intersecting(self, u: np.ndarray | PETSc.Vec | None = None) -> bool:
         """Whether any two triangles or edges of the collision mesh intersect (``ipctk.has_intersections``)."""
         return bool(self.ipctk.has_intersections(self.mesh, _f(self.vertices(self._state(u))), self.ipctk.HashGrid()))
