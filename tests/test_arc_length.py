@@ -193,3 +193,39 @@ def test_inflation_demo(shared_tmp, capsys):
     if MPI.COMM_WORLD.rank == 0:
         assert (shared_tmp / "inflation.png").stat().st_size > 0
         assert "maximum p/mu" in capsys.readouterr().out
+
+
+def test_branch_switching_leaves_the_symmetric_path_of_an_arch():
+    """A higher arch (H = 0.8) bifurcates into an antisymmetric mode before its symmetric limit point.
+
+    Without switching the path stays symmetric and reaches the symmetric
+    maximum (λ ≈ 3.71); with it, the bifurcation is found at λ ≈ 3.36
+    (0 → 1 negative pivot, no turn of the load) and the next steps follow the
+    antisymmetric branch, whose load falls: the quarter points part.
+    """
+    from hyperfem.cases.instability import ARCH_SPAN
+
+    case = shallow_arch(rise=0.8, cells=16)
+    quarters = hf.io.probes.PointProbe(
+        case.problem.domain.mesh, [[ARCH_SPAN / 4, 0.75 * 0.8 + 0.2, 0.1], [3 * ARCH_SPAN / 4, 0.75 * 0.8 + 0.2, 0.1]]
+    )
+    history: list = []
+    parts: list[float] = []
+
+    def on_step(record):
+        history.append(record)
+        v = quarters(case.problem.u)[:, 1]
+        parts.append(float(v[0] - v[1]))
+
+    continue_arc_length(
+        NewtonSolver(case.problem),
+        ArcLength(increment=0.1, end=None, max_steps=40, switch_branch=True),
+        on_step=on_step,
+        stop=lambda r: len(history) > 12 and abs(parts[-1]) > 0.1,
+    )
+    k = next(i for i, r in enumerate(history) if r.bifurcation)
+    assert 3.2 < history[k].time < 3.5 and history[k - 1].negative_pivots == 0 and history[k].negative_pivots == 1
+    assert history[k + 1].switched and not any(r.limit_point for r in history)
+    assert all(abs(p) < 2e-3 for p in parts[:k])  # symmetric before
+    assert abs(parts[-1]) > 0.1  # antisymmetric after
+    assert all(r.dt < 0 for r in history[k + 1 :])  # the branch's load falls

@@ -46,12 +46,15 @@ point, where :math:`K` alone is singular.
 saddle point of :math:`\Pi(u) - \lambda W(u)` in :math:`(u, \lambda)`, not a
 minimum, so the energy cannot judge a step (the energy line search of
 :class:`~hyperfem.solver.NewtonSolver` is not used here). The merit is the
-norm of the bordered residual,
-:math:`m = \lVert R_f\rVert/\lVert q_f\rVert + |c|/\Delta\ell^2` (:math:`f`: the
-rows without Dirichlet conditions): the step is a Newton direction of that
-system, so it descends :math:`m`; the step is halved until :math:`m` does
-not grow. The solver's step filters come first, so no accepted iterate
-inverts an element (the exact inversion-free filter, the :math:`J` check).
+residual norm :math:`\lVert R_f\rVert` (:math:`f`: the rows without
+Dirichlet conditions): whatever root the constraint picks, the step solves
+:math:`K\delta u + q\,\delta\lambda = -R`, so it descends that norm; the
+step is halved until the norm does not grow. The constraint holds at the
+full step (the root of the quadratic) and is restored by the next
+iteration after a shortened one. (A merit that adds :math:`|c|` refused
+good steps: along the step :math:`c` is quadratic, zero at both ends.)
+The solver's step filters come first, so no accepted iterate inverts an
+element (the exact inversion-free filter, the :math:`J` check).
 
 **Step control.** The arc length :math:`\Delta\ell` starts from the first
 load increment (``increment``, in load-factor units, converted with the
@@ -72,6 +75,14 @@ state with more negative pivots than the start is unstable under load
 control (the descending branch of a pressure maximum is). A three-field
 problem's pivots include its pressure block: the count at the start is the
 reference.
+
+**Branch switching** (``switch_branch``). At the first bifurcation found,
+the critical mode :math:`\varphi` (inverse iteration with the factorised
+tangent of the state just past it, orthogonal to the path tangent) is the
+predictor of the next step, :math:`\Delta u = \Delta\ell\,\varphi`,
+:math:`\Delta\lambda = 0`, with an eighth of the arc length (the
+bifurcation is found up to a step late, so the branch lies that far off);
+the path then continues on the new branch.
 
 **Scope.** Contact (external energies) is refused: the barrier's obstacles
 move with the time, which continuation leaves free; not yet available.
@@ -105,15 +116,19 @@ _DIVERGED_ITS = int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)
 _DIVERGED_LINEAR = int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE)
 _DIVERGED_DOMAIN = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
 _DIVERGED_LS = int(PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH)
+_DIVERGED_NAN = int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF)
 _REASONS = {
     _CONVERGED: "CONVERGED_FNORM_ABS",
     _DIVERGED_ITS: "DIVERGED_MAX_IT",
     _DIVERGED_LINEAR: "DIVERGED_LINEAR_SOLVE",
     _DIVERGED_DOMAIN: "DIVERGED_FUNCTION_DOMAIN",
     _DIVERGED_LS: "DIVERGED_LINE_SEARCH",
+    _DIVERGED_NAN: "DIVERGED_FUNCTION_NANORINF",
 }
 MAX_HALVINGS = 6
 """Halvings of a corrector step whose merit grew before the attempt fails (and the arc length is cut back)."""
+SWITCH_ARC = 0.125
+"""The arc length of a branch-switching step, as a fraction of the current one."""
 
 
 def _norm(v: PETSc.Vec) -> float:
@@ -148,6 +163,9 @@ class ArcLength:
             :math:`LDL^T` factorisation per step, MUMPS); ``None``: when the
             problem has at most ``INERTIA_LIMIT`` unknowns.
         direction: +1 or -1: the sign of the first load increment.
+        switch_branch: At the first bifurcation point found (it needs the
+            pivots, ``inertia``), leave the path along the critical mode
+            (branch switching: a perfect column buckles instead of staying straight).
     """
 
     increment: float = 0.1
@@ -165,6 +183,7 @@ class ArcLength:
     cutback: float = 0.5
     inertia: bool | None = None
     direction: int = 1
+    switch_branch: bool = False
 
     def __post_init__(self) -> None:
         where = "ArcLength"
@@ -188,6 +207,8 @@ class ArcLength:
             raise ParameterError(f"{where}: atol must be >= 0, got {self.atol!r}")
         if not (isinstance(self.cutback, (int, float)) and 0 < self.cutback < 1):
             raise ParameterError(f"{where}: cutback must lie in (0, 1), got {self.cutback!r}")
+        if self.switch_branch and self.inertia is False:
+            raise ParameterError(f"{where}: switch_branch needs the pivot count (inertia), got inertia=False")
         if self.direction not in (1, -1):
             raise ParameterError(f"{where}: direction must be +1 or -1, got {self.direction!r}")
         if self.end is not None and self.min_load is not None and not self.min_load < self.end:
@@ -230,6 +251,7 @@ class ArcLengthRecord(StepRecord):
     limit_point: bool = False
     limit_load: float = float("nan")
     bifurcation: bool = False
+    switched: bool = False
 
     def as_dict(self) -> dict:
         """JSON-serialisable summary (without the solve records)."""
@@ -241,6 +263,7 @@ class ArcLengthRecord(StepRecord):
             limit_point=self.limit_point,
             limit_load=self.limit_load,
             bifurcation=self.bifurcation,
+            switched=self.switched,
         )
         return out
 
@@ -293,6 +316,8 @@ class _Path:
     slope: float  # dλ/ds at the accepted state, in the direction of travel
     negative0: int = -1
     negative_prev: int = -1
+    mode: PETSc.Vec | None = None  # the critical mode the next step follows (branch switching)
+    switched: bool = False
     attempts: int = 0
 
 
@@ -385,12 +410,10 @@ class _Continuation:
         self.tangent(lam)
         return self.solve(self.q, self.w)
 
-    def constraint(self, du: np.ndarray, dlam: float, path: _Path) -> float:
-        return self.dot(du, du) + path.scale2 * dlam**2 - path.arc**2
-
-    def merit(self, lam: float, du: np.ndarray, dlam: float, path: _Path) -> float:
+    def merit(self, lam: float) -> float:
+        r""":math:`\lVert R_f\rVert` at ``x`` and ``lam`` (the residual left in ``r``)."""
         self.residual(lam, self.r)
-        return self.free_norm(self.r) / self.q_norm + abs(self.constraint(du, dlam, path)) / path.arc**2
+        return self.free_norm(self.r)
 
     def attempt(self, lam0: float, path: _Path) -> tuple[SolveRecord, float, np.ndarray]:
         """One attempt of a step of arc length ``path.arc`` from the state in ``x`` at ``lam0``.
@@ -421,11 +444,17 @@ class _Continuation:
                 linear_solver=self.solver.linear_solver_name,
             )
 
-        t = self.disp(path.tangent)
-        dlam = path.sign * path.arc / math.sqrt(self.dot(t, t) + path.scale2)
-        # Predictor x0 - dlam w (shortened by the step filters: y = dlam w is the step x - y).
-        path.tangent.copy(self.y)
-        self.y.scale(dlam)
+        if path.mode is not None:
+            # Branch switching: along the critical mode (unit displacement norm), the load held.
+            dlam = 0.0
+            path.mode.copy(self.y)
+            self.y.scale(-path.arc)
+        else:
+            t = self.disp(path.tangent)
+            dlam = path.sign * path.arc / math.sqrt(self.dot(t, t) + path.scale2)
+            # Predictor x0 - dlam w (shortened by the step filters: y = dlam w is the step x - y).
+            path.tangent.copy(self.y)
+            self.y.scale(dlam)
         fraction, message = self.filter(self.y)
         if message:
             return record(_DIVERGED_DOMAIN, 0, f"predictor: {message}"), 0.0, d0 * 0
@@ -437,7 +466,7 @@ class _Continuation:
             norm = self.free_norm(self.r)
             norms.append(norm)
             if not math.isfinite(norm):
-                return record(int(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_NANORINF), it, "residual NaN/inf"), 0.0, d0 * 0
+                return record(_DIVERGED_NAN, it, "residual NaN/inf"), 0.0, d0 * 0
             du = self.disp(self.x) - d0
             if norm <= s.rtol * self.q_norm + s.atol and it > 0:
                 out = record(_CONVERGED, it)
@@ -462,7 +491,7 @@ class _Continuation:
             if message:
                 return record(_DIVERGED_DOMAIN, it, message), 0.0, du
             dlam_step *= fraction
-            accepted, lam = self.line_search(lam, lam0, d0, dlam_step, path)
+            accepted, lam = self.line_search(lam, dlam_step)
             if not accepted:
                 return record(_DIVERGED_LS, it + 1, "corrector: the merit did not decrease"), 0.0, du
         return record(_DIVERGED_ITS, s.max_iterations), 0.0, self.disp(self.x) - d0
@@ -489,16 +518,15 @@ class _Continuation:
         except NoAdmissibleStep as refusal:
             return 0.0, str(refusal)
 
-    def line_search(self, lam: float, lam0: float, d0: np.ndarray, dlam: float, path: _Path) -> tuple[bool, float]:
+    def line_search(self, lam: float, dlam: float) -> tuple[bool, float]:
         """Backtrack ``x - α y``, ``λ + α δλ`` until the merit does not grow; whether a step was taken."""
         xk = self.x.getArray(readonly=True).copy()
-        c0 = self.constraint(self.disp(self.x) - d0, lam - lam0, path)
-        m0 = self.free_norm(self.r) / self.q_norm + abs(c0) / path.arc**2
+        m0 = self.free_norm(self.r)
         alpha = 1.0
         for _ in range(MAX_HALVINGS + 1):
             self.set_x(xk, self.y, -alpha)
             trial = lam + alpha * dlam
-            if self.merit(trial, self.disp(self.x) - d0, trial - lam0, path) <= m0 * (1 + 1e-10):
+            if self.merit(trial) <= m0 * (1 + 1e-10):
                 return True, trial
             alpha *= 0.5
         self.set_x(xk, self.y, 0.0)
@@ -525,6 +553,34 @@ class _Continuation:
         path.sign = sign
         path.slope = sign / math.sqrt(self.dot(t, t) + path.scale2)
         return turned, count_negative_pivots(self.A) if self.inertia else -1
+
+    def critical_mode(self, path: _Path, iterations: int = 10) -> PETSc.Vec:
+        r"""The eigenvector of the tangent's eigenvalue nearest zero, by inverse iteration with its factorisation.
+
+        Called right after :meth:`settle` (the tangent at the state just past
+        the bifurcation is factorised): from a uniform start with zero
+        Dirichlet rows, ``iterations`` solves; the component along the path
+        tangent is removed, the displacement norm made 1, and the sign fixed
+        so that the largest displacement entry is positive (the same on any
+        number of ranks).
+        """
+        v = self.w.duplicate()
+        v.set(1.0)
+        fpetsc.set_bc(v, self.problem.bcs, alpha=0.0)
+        for _ in range(iterations):
+            if not self.solve(v, self.work):
+                raise ConvergenceError("arc-length continuation: the inverse iteration for the critical mode failed")
+            self.work.copy(v)
+            v.scale(1.0 / _norm(v))
+        t, phi = self.disp(path.tangent), self.disp(v)
+        v.axpy(-self.dot(phi, t) / self.dot(t, t), path.tangent)
+        phi = self.disp(v)
+        v.scale(1.0 / math.sqrt(self.dot(phi, phi)))
+        local = phi[np.argmax(np.abs(phi))] if phi.size else 0.0
+        biggest = self.comm.allreduce((abs(float(local)), float(local)), op=MPI.MAX)
+        if biggest[1] < 0:
+            v.scale(-1.0)
+        return v
 
 
 def _hermite_extremum(lam0: float, lam1: float, slope0: float, slope1: float) -> float:
@@ -581,8 +637,10 @@ def continue_arc_length(
     lam = float(problem.time)
     history: list[ArcLengthRecord] = []
     tangent = run.w.duplicate()
+    mode_holder: list[_Path] = []
     try:
         path = _start(run, lam, tangent)
+        mode_holder.append(path)
         factor = math.sqrt(run.dot(run.disp(tangent), run.disp(tangent)) + path.scale2)
         path.arc = s.increment * factor  # arc length per unit load increment at the start, times the increment
         arc_min, arc_max = s.min_step * factor, s.max_step * factor
@@ -614,6 +672,12 @@ def continue_arc_length(
                     )
             slope0, arc = path.slope, path.arc
             turned, negative = run.settle(lam + dlam, du, dlam, path)
+            switched = path.mode is not None
+            if switched:
+                assert path.mode is not None
+                path.mode.destroy()
+                path.mode = None
+                turned = False  # leaving the primary path is not a turn of the load
             limit = float("nan")
             if turned:
                 limit = _hermite_extremum(lam, lam + dlam, slope0 * arc, path.slope * arc)
@@ -633,7 +697,11 @@ def continue_arc_length(
                 limit_point=turned,
                 limit_load=limit,
                 bifurcation=negative >= 0 and path.negative_prev >= 0 and negative != path.negative_prev and not turned,
+                switched=switched,
             )
+            if step.bifurcation and s.switch_branch and not path.switched:
+                path.mode, path.switched = run.critical_mode(path), True
+                path.arc = max(path.arc * SWITCH_ARC, arc_min)
             path.negative_prev = negative
             ratio = math.sqrt(s.target_iterations / max(1, record.iterations))
             path.arc = min(max(path.arc * min(2.0, max(0.5, ratio)), arc_min), arc_max)
@@ -649,6 +717,8 @@ def continue_arc_length(
     finally:
         run.close()
         tangent.destroy()
+        if mode_holder and mode_holder[0].mode is not None:
+            mode_holder[0].mode.destroy()
     return history
 
 
