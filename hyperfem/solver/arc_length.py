@@ -56,13 +56,15 @@ good steps: along the step :math:`c` is quadratic, zero at both ends.)
 The solver's step filters come first, so no accepted iterate inverts an
 element (the exact inversion-free filter, the :math:`J` check).
 
-**Step control.** The arc length :math:`\Delta\ell` starts from the first
-load increment (``increment``, in load-factor units, converted with the
-first predictor), is scaled by :math:`\sqrt{N_d/N}` after each step
-(:math:`N` Newton iterations, :math:`N_d` = ``target_iterations``, the factor
-in [1/2, 2]) within the bounds, and cut back on failure. A run stops when
-the load factor passes ``end`` (or falls below ``min_load``), when ``stop``
-says so, or after ``max_steps`` steps.
+**Step control.** The steps are those of the one stepper
+(:func:`~hyperfem.solver.stepping.run_steps` on an :class:`ArcLengthStage`):
+its step lengths are arc lengths in load-factor units of the start
+(:math:`\Delta\ell = h\sqrt{t\cdot t + \psi^2 s^2}` with :math:`t` the start
+tangent), so ``increment`` is the first load increment; the arc length
+doubles after an easy step (at most ``target_iterations`` corrector
+iterations), is cut back after a failed attempt, within the bounds. A run
+stops when the load factor passes ``end`` (or falls below ``min_load``),
+when ``stop`` says so, or after ``max_steps`` steps.
 
 **Limit and bifurcation points.** A limit point lies between two steps
 whose load increments have opposite signs (its load factor is located by a
@@ -77,12 +79,18 @@ problem's pivots include its pressure block: the count at the start is the
 reference.
 
 **Branch switching** (``switch_branch``). At the first bifurcation found,
-the critical mode :math:`\varphi` (inverse iteration with the factorised
-tangent of the state just past it, orthogonal to the path tangent) is the
-predictor of the next step, :math:`\Delta u = \Delta\ell\,\varphi`,
-:math:`\Delta\lambda = 0`, with an eighth of the arc length (the
-bifurcation is found up to a step late, so the branch lies that far off);
-the path then continues on the new branch.
+the step's arc length is bisected :data:`BISECTIONS` times on the pivot
+count, which puts the state within :math:`2^{-5}` of the step past the
+bifurcation point. The critical mode :math:`\varphi` there (inverse
+iteration with the factorised tangent, orthogonal to the path tangent) is
+the predictor of the next step, :math:`\Delta u = \Delta\ell\,\varphi`,
+:math:`\Delta\lambda = 0`, with :data:`SWITCH_ARC` of the first increment;
+the arc length then regrows by :data:`CAP_GROWTH` per step, and until it
+has, a step whose amplitude along :math:`\varphi` (from the bifurcation
+point) does not grow is refused and cut back: near the bifurcation point
+the sphere of a step also meets the old branch, and the corrector may fall
+back onto it (measured on the arch: without the guard, two of three
+settings of these constants returned to the symmetric path).
 
 **Scope.** Contact (external energies) is refused: the barrier's obstacles
 move with the time, which continuation leaves free; not yet available.
@@ -93,7 +101,7 @@ from __future__ import annotations
 import math
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, cast
 
 import numpy as np
@@ -106,10 +114,18 @@ from hyperfem.errors import ConvergenceError, ParameterError
 from hyperfem.solver.filters import NoAdmissibleStep
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.state import assign_state
-from hyperfem.solver.stepping import StepRecord, _displacement_dofs
+from hyperfem.problem.protocol import SolidProblem
+from hyperfem.solver.stepping import (
+    StepPolicy,
+    StepRecord,
+    _displacement_dofs,
+    _max_nodal_distance,
+    _Snapshot,
+    run_steps,
+)
 from hyperfem.validation import check_count, check_finite_scalar, check_positive
 
-__all__ = ["ArcLength", "ArcLengthRecord", "continue_arc_length", "count_negative_pivots"]
+__all__ = ["ArcLength", "ArcLengthRecord", "ArcLengthStage", "continue_arc_length", "count_negative_pivots"]
 
 _CONVERGED = int(PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS)
 _DIVERGED_ITS = int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)
@@ -127,8 +143,12 @@ _REASONS = {
 }
 MAX_HALVINGS = 6
 """Halvings of a corrector step whose merit grew before the attempt fails (and the arc length is cut back)."""
-SWITCH_ARC = 0.125
-"""The arc length of a branch-switching step, as a fraction of the current one."""
+SWITCH_ARC = 0.5
+"""The arc length of a branch-switching step, as a fraction of the first increment (``ArcLength.increment``)."""
+CAP_GROWTH = 1.6
+"""Growth per step of the arc length after a branch switch (slow: the new branch leaves the old one at a point)."""
+BISECTIONS = 5
+"""Bisections of a step's arc length that locate a bifurcation point before switching branches."""
 
 
 def _norm(v: PETSc.Vec) -> float:
@@ -152,7 +172,7 @@ class ArcLength:
         min_load: Stop once the load factor falls below it (``None``: no such stop).
         max_steps: Accepted steps before the run stops.
         max_attempts: Attempts (accepted and cut back) before the run fails.
-        target_iterations: Corrector iterations the arc length adapts to.
+        target_iterations: A step of at most this many corrector iterations is easy (the arc length doubles).
         max_iterations: Corrector iterations before an attempt fails.
         rtol: Convergence: :math:`\lVert R_f\rVert \le` ``rtol`` :math:`\lVert q_f\rVert + ` ``atol``
             (:math:`q_f`: the load vector at :math:`\lambda = 1` scale, the
@@ -223,6 +243,33 @@ class ArcLength:
     def max_step(self) -> float:
         """Effective ``max_increment``."""
         return self.max_increment if self.max_increment is not None else 4 * self.increment
+
+    def policy(self, start: float = 0.0) -> StepPolicy:
+        """The policy of :func:`~hyperfem.solver.stepping.run_steps` for a continuation from the load factor ``start``.
+
+        Its increments are arc lengths in load-factor units; after an easy
+        step (at most ``target_iterations`` Newton iterations) the arc length
+        doubles, after a failed attempt it is cut back; the run ends when the
+        load factor passes ``end`` (never, without one).
+        """
+        end = self.end if self.end is not None else self.direction * BIG
+        if (end - start) * self.direction <= 0:
+            raise ParameterError(
+                f"ArcLength: end = {end:g} does not lie in the direction {self.direction:+d} from the start {start:g}"
+            )
+        return StepPolicy(
+            end=end,
+            increment=self.increment,
+            min_increment=self.min_step,
+            max_increment=self.max_step,
+            cutback=self.cutback,
+            growth=2.0,
+            grow_after=1,
+            easy_iterations=self.target_iterations,
+            landing="clip",
+            reject_inversion=False,  # the step filters refuse inverting iterates
+            max_steps=self.max_attempts,
+        )
 
 
 INERTIA_LIMIT = 200_000
@@ -600,6 +647,200 @@ def _hermite_extremum(lam0: float, lam1: float, slope0: float, slope1: float) ->
     return float(max(values) if slope0 > 0 else min(values))
 
 
+class ArcLengthStage:
+    """Arc-length continuation as a stage of the one stepper (:func:`~hyperfem.solver.stepping.run_steps`).
+
+    The step length the stepper asks for is the arc length in load-factor
+    units of the start (:math:`\\Delta\\ell` over :math:`\\sqrt{t\\cdot t + \\psi^2 s^2}`
+    at the start), so the policy's increment bounds, cut-back and growth act
+    on it as on a load increment; the time reached is the load factor, which
+    may go down (:attr:`last_increment` is the step's load increment). After
+    each accepted step :attr:`events` holds what was found in it.
+
+    Args:
+        problem: The problem (a :class:`~hyperfem.problem.protocol.SolidProblem`); its time is the start.
+        solver: The Newton solver built on it (assembly, linear solver, step filters).
+        settings: The continuation settings.
+
+    Raises:
+        ParameterError: A solver with contact, or nothing that moves with the load factor.
+        ConvergenceError: The tangent solve at the start failed.
+    """
+
+    kind = "arc-length"
+
+    def __init__(self, problem: SolidProblem, solver: NewtonSolver, settings: ArcLength | None = None) -> None:
+        self.problem = problem
+        self.solver = solver
+        self.settings = ArcLength() if settings is None else settings
+        self._run = _Continuation(solver, self.settings)
+        self._time = float(problem.time)
+        self._tangent = self._run.w.duplicate()
+        self._tangent_before = self._run.w.duplicate()
+        self._before: tuple[np.ndarray, float, float] | None = None
+        self._cap: float | None = None
+        self._branch: tuple[np.ndarray, np.ndarray, float] | None = None  # mode, origin, amplitude after a switch
+        try:
+            self._path = _start(self._run, self._time, self._tangent)
+        except Exception:
+            self.close()
+            raise
+        t = self._run.disp(self._tangent)
+        self.factor = math.sqrt(self._run.dot(t, t) + self._path.scale2)
+        """Arc length per unit load increment at the start (the unit of the step lengths)."""
+        self._pending: tuple[float, np.ndarray, float] | None = None
+        self._dofs = _displacement_dofs(problem)
+        self.last_increment = 0.0
+        """The load increment of the last committed step."""
+        self.events: dict[str, Any] = {}
+        """What the last committed step found: ``arc_length``, ``negative_pivots``, ``stable``,
+        ``limit_point``, ``limit_load``, ``bifurcation``, ``switched``."""
+
+    @property
+    def time(self) -> float:
+        """The load factor of the accepted state."""
+        return self._time
+
+    def save(self) -> _Snapshot:
+        """Copy of the unknown and the load factor."""
+        return _Snapshot(self._time, self.problem.u.x.array.copy())
+
+    def restore(self, state: _Snapshot) -> None:
+        """Back to ``state``."""
+        self.problem.u.x.array[:] = state.u
+        self.problem.set_time(state.time)
+        self._time = state.time
+        self._pending = None
+
+    def advance(self, t: float, dt: float) -> SolveRecord:
+        """One attempt of arc length ``|dt|`` (load-factor units) from the accepted state at ``t``."""
+        path = self._path
+        # After a branch switch the arc length starts again from SWITCH_ARC of the first increment (a long step
+        # from near the bifurcation point may fall back onto the old branch) and doubles step by step.
+        length = abs(dt) if self._cap is None else min(abs(dt), self._cap)
+        path.arc = length * self.factor
+        self._before = (self.problem.u.x.array.copy(), path.sign, path.slope)
+        path.tangent.copy(self._tangent_before)
+        self._run.load_state(self._time)
+        record, dlam, du = self._run.attempt(self._time, path)
+        if record.converged and self._branch is not None:
+            # While the arc length regrows after a switch, a step must go on along the new branch: its
+            # amplitude along the critical mode (from the bifurcation point) grows, or it fell back onto the old.
+            mode, origin, amplitude = self._branch
+            now = abs(self._run.dot(mode, self._run.disp(self._run.x) - origin))
+            if not now > amplitude:
+                record.converged, record.reason_name = False, "DIVERGED_FUNCTION_DOMAIN"
+                record.reason = _DIVERGED_DOMAIN
+                record.message = "the step fell back toward the branch it left"
+            else:
+                self._branch = (mode, origin, now)
+        self.problem.set_time(self._time + dlam if record.converged else self._time)
+        self._pending = (dlam, du, path.arc)
+        return record
+
+    def commit(self) -> None:
+        """Accept the last attempt: the tangent and the direction for the next step, the pivots, the events."""
+        assert self._pending is not None  # commit follows advance
+        dlam, du, arc = self._pending
+        path, lam0 = self._path, self._time
+        lam = lam0 + dlam
+        slope0 = path.slope
+        turned, negative = self._run.settle(lam, du, dlam, path)
+        switched = path.mode is not None
+        if path.mode is not None:
+            path.mode.destroy()
+            path.mode = None
+            turned = False  # leaving the primary path is not a turn of the load
+        bifurcation = negative >= 0 and path.negative_prev >= 0 and negative != path.negative_prev and not turned
+        self.events = {
+            "arc_length": arc / self.factor,
+            "negative_pivots": negative,
+            "stable": None if negative < 0 else negative <= path.negative0,
+            "limit_point": turned,
+            "limit_load": _hermite_extremum(lam0, lam, slope0 * arc, path.slope * arc) if turned else float("nan"),
+            "bifurcation": bifurcation,
+            "switched": switched,
+        }
+        if bifurcation and self.settings.switch_branch and not path.switched:
+            # Switch from a state within 2^-BISECTIONS of the step of the bifurcation point (the sphere of the
+            # switching step must reach the new branch, and not much farther).
+            lam, dlam, negative = self._bisect(lam0, arc, path.negative_prev, (lam, dlam, du, negative))
+            self.events.update(arc_length=self.events["arc_length"], negative_pivots=negative)
+            path.mode, path.switched = self._run.critical_mode(path), True
+            self._cap = SWITCH_ARC * self.settings.increment / CAP_GROWTH  # grown below
+            self._branch = (self._run.disp(path.mode), self._run.disp(self._run.x), 0.0)
+        if self._cap is not None:
+            self._cap = CAP_GROWTH * self._cap if self._cap < self.settings.max_step else None
+            if self._cap is None:
+                self._branch = None
+        path.negative_prev = negative
+        self._time, self.last_increment, self._pending = lam, dlam, None
+
+    def _bisect(
+        self, lam0: float, arc: float, before: int, found: tuple[float, float, np.ndarray, int]
+    ) -> tuple[float, float, int]:
+        """The state past a bifurcation nearest the step's start, by bisecting the arc length on the pivot count.
+
+        From the step's start (``lam0``, arc length ``arc``, ``before`` negative
+        pivots) to the state ``found`` (load factor, increment, displacement
+        increment, pivots) past the bifurcation: :data:`BISECTIONS` attempts.
+        Leaves the nearest such state (its tangent factorised) in the problem;
+        returns its load factor, increment and pivots.
+        """
+        assert self._before is not None  # set by advance
+        u_start, sign, slope = self._before
+        path, run = self._path, self._run
+        best = (self.problem.u.x.array.copy(), *found)
+        tangent = path.tangent.duplicate()
+        lo, hi = 0.0, arc
+        try:
+            for _ in range(BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                self.problem.u.x.array[:] = u_start
+                self._tangent_before.copy(path.tangent)
+                path.sign, path.slope, path.arc = sign, slope, mid
+                run.load_state(lam0)
+                record, dlam, du = run.attempt(lam0, path)
+                if not record.converged:
+                    break
+                _, negative = run.settle(lam0 + dlam, du, dlam, path)
+                if negative != before:
+                    hi, best = mid, (self.problem.u.x.array.copy(), lam0 + dlam, dlam, du, negative)
+                else:
+                    lo = mid
+            u, lam, dlam, du, negative = best
+            self.problem.u.x.array[:] = u
+            self._tangent_before.copy(path.tangent)
+            path.sign, path.slope = sign, slope
+            self.problem.set_time(lam)
+            run.load_state(lam)
+            run.settle(lam, du, dlam, path)  # the tangent of this state, factorised, for the critical mode
+        finally:
+            tangent.destroy()
+        return lam, dlam, negative
+
+    def distance(self, state: _Snapshot) -> float:
+        """Largest nodal displacement difference from ``state``."""
+        return _max_nodal_distance(self.problem, self._dofs, self.problem.u.x.array, state.u)
+
+    def measure(self) -> dict[str, Any]:
+        """Row entries of the last committed step (a :class:`~hyperfem.simulation.Simulation` row)."""
+        return dict(self.events)
+
+    def close(self) -> None:
+        """Free the work vectors."""
+        self._run.close()
+        self._tangent.destroy()
+        self._tangent_before.destroy()
+        if getattr(self, "_path", None) is not None and self._path.mode is not None:
+            self._path.mode.destroy()
+            self._path.mode = None
+
+
+BIG = 1e300
+"""The end of a policy whose run stops by other criteria (``ArcLength(end=None)``)."""
+
+
 def continue_arc_length(
     solver: NewtonSolver,
     settings: ArcLength | None = None,
@@ -611,7 +852,9 @@ def continue_arc_length(
     The problem's time is the load factor :math:`\lambda`: every load and
     prescribed displacement keeps its profile, and :math:`\lambda` goes where
     the path leads (up, through a maximum, down). The start should be an
-    equilibrium (the unloaded state, or a converged ramp).
+    equilibrium (the unloaded state, or a converged ramp). The steps are
+    taken by :func:`~hyperfem.solver.stepping.run_steps` on an
+    :class:`ArcLengthStage` under :meth:`ArcLength.policy`.
 
     Args:
         solver: A :class:`~hyperfem.solver.NewtonSolver` on the problem (its
@@ -632,93 +875,30 @@ def continue_arc_length(
             prescribed displacements do not change with the load factor.
     """
     s = ArcLength() if settings is None else settings
-    run = _Continuation(solver, s)
-    problem = solver.problem
-    lam = float(problem.time)
+    stage = ArcLengthStage(solver.problem, solver, s)
     history: list[ArcLengthRecord] = []
-    tangent = run.w.duplicate()
-    mode_holder: list[_Path] = []
+
+    def accept(record: StepRecord) -> None:
+        step = ArcLengthRecord(**{f.name: getattr(record, f.name) for f in fields(StepRecord)}, **stage.events)
+        history.append(step)
+        if on_step is not None:
+            on_step(step)
+
+    def done(record: StepRecord) -> bool:
+        last = history[-1]
+        return (
+            len(history) >= s.max_steps
+            or (s.min_load is not None and last.time < s.min_load)
+            or (stop is not None and bool(stop(last)))
+        )
+
     try:
-        path = _start(run, lam, tangent)
-        mode_holder.append(path)
-        factor = math.sqrt(run.dot(run.disp(tangent), run.disp(tangent)) + path.scale2)
-        path.arc = s.increment * factor  # arc length per unit load increment at the start, times the increment
-        arc_min, arc_max = s.min_step * factor, s.max_step * factor
-        while len(history) < s.max_steps:
-            start = _time.perf_counter()
-            saved = problem.u.x.array.copy()
-            failed: list[SolveRecord] = []
-            while True:
-                path.attempts += 1
-                if path.attempts > s.max_attempts:
-                    raise ConvergenceError(
-                        f"arc-length continuation exceeded {s.max_attempts} attempts at λ = {lam:g}", lam, history
-                    )
-                run.load_state(lam)
-                record, dlam, du = run.attempt(lam, path)
-                if record.converged:
-                    break
-                failed.append(record)
-                problem.u.x.array[:] = saved
-                problem.set_time(lam)
-                path.arc *= s.cutback
-                if path.arc < arc_min * (1 - 1e-12):
-                    raise ConvergenceError(
-                        f"arc-length continuation failed at λ = {lam:g}: arc length {path.arc / factor:g} "
-                        f"(in load-factor units) below the minimum {s.min_step:g} (SNES {record.reason_name}"
-                        f"{': ' + record.message if record.message else ''}, min J {record.min_J:.3g})",
-                        lam,
-                        history,
-                    )
-            slope0, arc = path.slope, path.arc
-            turned, negative = run.settle(lam + dlam, du, dlam, path)
-            switched = path.mode is not None
-            if switched:
-                assert path.mode is not None
-                path.mode.destroy()
-                path.mode = None
-                turned = False  # leaving the primary path is not a turn of the load
-            limit = float("nan")
-            if turned:
-                limit = _hermite_extremum(lam, lam + dlam, slope0 * arc, path.slope * arc)
-            lam += dlam
-            step = ArcLengthRecord(
-                step=len(history) + 1,
-                time=lam,
-                dt=dlam,
-                solve_records=[record],
-                failed=failed,
-                solves=1 + len(failed),
-                rejected=len(failed),
-                wall_time=_time.perf_counter() - start,
-                arc_length=arc,
-                negative_pivots=negative,
-                stable=None if negative < 0 else negative <= path.negative0,
-                limit_point=turned,
-                limit_load=limit,
-                bifurcation=negative >= 0 and path.negative_prev >= 0 and negative != path.negative_prev and not turned,
-                switched=switched,
-            )
-            if step.bifurcation and s.switch_branch and not path.switched:
-                path.mode, path.switched = run.critical_mode(path), True
-                path.arc = max(path.arc * SWITCH_ARC, arc_min)
-            path.negative_prev = negative
-            ratio = math.sqrt(s.target_iterations / max(1, record.iterations))
-            path.arc = min(max(path.arc * min(2.0, max(0.5, ratio)), arc_min), arc_max)
-            history.append(step)
-            if on_step is not None:
-                on_step(step)
-            if stop is not None and stop(step):
-                break
-            if s.end is not None and (lam - s.end) * s.direction >= 0:
-                break
-            if s.min_load is not None and lam < s.min_load:
-                break
+        run_steps(stage, s.policy(stage.time), accept, stop=done)
+    except ConvergenceError as exc:
+        exc.history = list(history)
+        raise
     finally:
-        run.close()
-        tangent.destroy()
-        if mode_holder and mode_holder[0].mode is not None:
-            mode_holder[0].mode.destroy()
+        stage.close()
     return history
 
 

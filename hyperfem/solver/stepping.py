@@ -677,10 +677,12 @@ def _step(
                 history,
             )
     _grow(policy, control, attempt.accepted)
+    # A stage whose time increment is not the step length asked for (continuation) says what it was.
+    increment = getattr(stage, "last_increment", None)
     return StepRecord(
         step=len(history) + 1,
         time=stage.time,
-        dt=course.sign * h,
+        dt=course.sign * h if increment is None else float(increment),
         solve_records=attempt.accepted,
         failed=failed,
         solves=solves,
@@ -697,6 +699,7 @@ def run_steps(
     *,
     streak: int = 0,
     attempts: int = 0,
+    stop: Callable[[StepRecord], bool] | None = None,
 ) -> list[StepRecord]:
     """Step ``stage`` from its time to ``policy.end``.
 
@@ -708,6 +711,8 @@ def run_steps(
         streak: Easy steps already counted towards the next growth of the
             increment (a run continued from a checkpoint carries on its count).
         attempts: Attempts already spent of ``policy.max_steps`` (likewise).
+        stop: Called after ``on_step``; ``True`` ends the run before ``policy.end``
+            (a probe reached a value, a continuation its last step).
 
     Returns:
         The accepted steps.
@@ -731,6 +736,8 @@ def run_steps(
         history.append(record)
         if on_step is not None:
             on_step(record)
+        if stop is not None and stop(record):
+            break
     return history
 
 
