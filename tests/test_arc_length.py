@@ -229,3 +229,56 @@ def test_branch_switching_leaves_the_symmetric_path_of_an_arch():
     assert all(abs(p) < 2e-3 for p in parts[:k])  # symmetric before
     assert abs(parts[-1]) > 0.1  # antisymmetric after
     assert all(r.dt < 0 for r in history[k + 1 :])  # the branch's load falls
+
+
+class _Killed(Exception):
+    """Stands for a kill after a given step."""
+
+
+def _arch_simulation(folder, stop_after=None):
+    from hyperfem.simulation import Checkpoint, CSVLog, JSONSummary, Output, Simulation
+
+    class StopAfter(Output):
+        def write(self, sim, step) -> None:
+            if stop_after is not None and step is not None and step.step >= stop_after:
+                raise _Killed(f"killed after step {step.step}")
+
+    case = shallow_arch(rise=0.5, cells=16)
+    outputs = [
+        StopAfter(),
+        CSVLog(folder / "arch.csv"),
+        JSONSummary(folder / "arch.json"),
+        Checkpoint(folder / "ckpt", every=4),
+    ]
+    settings = ArcLength(increment=0.2, end=None, max_steps=12)
+    return Simulation(case.problem, NewtonSolver(case.problem), settings, outputs, name="arch")
+
+
+def test_simulation_continuation_rows_summary_and_restart(shared_tmp):
+    """The arch in a Simulation: the load factor is the time column, every row has the step's pivots and
+    events, the summary the limit point; a run killed after step 6 and continued from its checkpoint at
+    step 4 ends where the uninterrupted one does."""
+    import csv
+
+    full = _arch_simulation(shared_tmp / "full")
+    summary = full.run()
+    assert summary["stage"] == "arc-length" and summary["completed"] and summary["steps"] == 12
+    assert summary["end"] is None
+    assert summary["limit_points"] == pytest.approx([1.67342], rel=1e-3)
+    rows = summary["rows"]
+    assert rows[0]["negative_pivots"] == 0 and rows[0]["time"] == 0.0
+    assert [r["time"] for r in rows[1:]] == pytest.approx([s.time for s in full.steps], abs=0)
+    assert any(r["dt"] < 0 for r in rows) and {r["negative_pivots"] for r in rows} == {0, 1}
+    MPI.COMM_WORLD.Barrier()
+    with (shared_tmp / "full" / "arch.csv").open() as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 13 and "limit_point" in table[0] and "negative_pivots" in table[0]
+
+    with pytest.raises(_Killed):
+        _arch_simulation(shared_tmp / "cut", stop_after=6).run()
+    resumed = _arch_simulation(shared_tmp / "cut").run(restart=shared_tmp / "cut" / "ckpt")
+    assert resumed["completed"] and resumed["steps"] == 12
+    assert resumed["limit_points"] == pytest.approx(summary["limit_points"], rel=1e-8)
+    for a, b in zip(resumed["rows"], rows, strict=True):
+        assert a["time"] == pytest.approx(b["time"], rel=1e-8, abs=1e-12)
+        assert a["negative_pivots"] == b["negative_pivots"]

@@ -284,6 +284,7 @@ def save_checkpoint(
         "time": sim.time,
         "completed": sim.completed,
         "stepper": dataclasses.asdict(sim.stepper),
+        "stage": _stage_state(sim),
         "policy": {f.name: getattr(sim.policy, f.name) for f in dataclasses.fields(sim.policy)},
         "wall_time": sim.wall_time,
         "rows": history.refer("rows", sim.rows),
@@ -293,6 +294,12 @@ def save_checkpoint(
         ],
     }
     return write_checkpoint(folder, sim.step, checkpoint_functions(sim), meta, sim.comm, keep=keep, history=history)
+
+
+def _stage_state(sim: Simulation) -> dict | None:
+    """What the stage of ``sim`` keeps for a restart (a continuation's direction and pivots), or ``None``."""
+    state = getattr(sim.stage, "checkpoint_state", None)
+    return None if state is None else state()
 
 
 def load_checkpoint(sim: Simulation, path: str | Path) -> dict:

@@ -56,6 +56,7 @@ from hyperfem.simulation import checkpoint as _checkpoint
 from hyperfem.simulation.interrupt import InterruptGuard
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.simulation.outputs import Output
+from hyperfem.solver.arc_length import ArcLength, ArcLengthStage
 from hyperfem.solver.stepping import DynamicStage, QuasiStaticStage, Stage, StepPolicy, StepRecord, run_steps
 
 if TYPE_CHECKING:
@@ -176,7 +177,13 @@ class Simulation:
             has ``min_J()`` and ``linear_solver_name`` in its place).
         stepper: The :class:`~hyperfem.solver.stepping.StepPolicy`, or a preset
             (:class:`~hyperfem.solver.LoadStepping` to 1,
-            :class:`~hyperfem.dynamics.TimeStepping`) turned into one.
+            :class:`~hyperfem.dynamics.TimeStepping`) turned into one, or
+            :class:`~hyperfem.solver.ArcLength` for a continuation (an
+            :class:`~hyperfem.solver.ArcLengthStage` under its policy: the
+            load factor is the time, each row gets the step's events —
+            ``negative_pivots``, ``stable``, ``limit_point``, ``limit_load``,
+            ``bifurcation``, ``switched``, ``arc_length`` — and the summary
+            the ``limit_points`` and ``bifurcations`` found).
         outputs: Observers (:mod:`hyperfem.simulation.outputs`,
             :mod:`hyperfem.simulation.measures`), called in this order.
         stage: The :class:`~hyperfem.solver.stepping.Stage` class that takes
@@ -227,7 +234,7 @@ class Simulation:
         self,
         problem: SolidProblem | ExplicitDynamics,
         solver: NewtonSolver | None,
-        stepper: StepPolicy | StepPreset,
+        stepper: StepPolicy | StepPreset | ArcLength,
         outputs: Sequence[Output] = (),
         *,
         stage: StageType | None = None,
@@ -248,7 +255,13 @@ class Simulation:
         if stage is None:
             stage = DynamicStage if _is_time_step(problem) else QuasiStaticStage
         self._stage_type = stage
-        self.policy = stepper if isinstance(stepper, StepPolicy) else stepper.policy()
+        self.continuation = stepper if isinstance(stepper, ArcLength) else None
+        if self.continuation is not None:
+            if solver is None or _is_time_step(problem):
+                raise ParameterError(f"{name}: arc-length continuation needs a quasi-static problem and its solver")
+            self.policy = self.continuation.policy(float(problem.time))
+        else:
+            self.policy = stepper if isinstance(stepper, StepPolicy) else stepper.policy()
         self.outputs = list(outputs)
         self.name = name
         self.info = dict(info or {})
@@ -278,8 +291,8 @@ class Simulation:
     # -- state -----------------------------------------------------------------------
     @property
     def kind(self) -> str:
-        """The stage's kind: ``"dynamic"`` for a time step, else ``"quasi-static"``."""
-        return self._stage_type.kind
+        """The stage's kind: ``"dynamic"`` (a time step), ``"arc-length"`` (a continuation) or ``"quasi-static"``."""
+        return ArcLengthStage.kind if self.continuation is not None else self._stage_type.kind
 
     @property
     def time(self) -> float:
@@ -337,7 +350,13 @@ class Simulation:
             self._wall_before = float(meta.get("wall_time", 0.0))
             policy = self.stepper.resumed(self.policy)
             self.fields.refresh()
-        self.stage = self._stage_type(self.problem, self.solver)
+        if self.continuation is not None:
+            assert self.solver is not None and isinstance(self.problem, SolidProblem)  # __init__
+            self.stage = ArcLengthStage(self.problem, self.solver, self.continuation)
+            if meta is not None and meta.get("stage"):
+                self.stage.resume(meta["stage"])
+        else:
+            self.stage = self._stage_type(self.problem, self.solver)
         domain = self.fields.base.domain
         if self.mesh_quality is None and domain.mesh.topology.cell_type.name in ("triangle", "tetrahedron"):
             # seed 003 §5.6: look at the mesh before solving on it (a warning, not an error, when poor);
@@ -363,7 +382,8 @@ class Simulation:
             resume = {}
             if meta is not None:  # the step-size control carries on its counts
                 resume = {"streak": min(self.stepper.streak, policy.grow_after - 1), "attempts": self.stepper.attempts}
-            run_steps(self.stage, policy, lambda record: self._accept(record, None), **resume)
+            finished = getattr(self.stage, "finished", None)  # a stage may end the run early (continuation)
+            run_steps(self.stage, policy, lambda record: self._accept(record, None), stop=finished, **resume)
             self.completed = True
         except ConvergenceError as exc:
             self.error = str(exc)
@@ -485,6 +505,9 @@ class Simulation:
             else (solve.pc_setup_time if solve else 0.0),
             **(solve.indicators if solve is not None else {}),
         }
+        measure = getattr(self.stage, "measure", None)  # a stage's own entries (a continuation's events)
+        if measure is not None:
+            row.update(measure())
         for output in self.outputs:
             row.update(output.measure(self, record))
         self.rows.append(row)
@@ -537,6 +560,11 @@ class Simulation:
             "mesh_quality": None if self.mesh_quality is None else self.mesh_quality.stats,
             **self.info,
         }
+        if self.continuation is not None:
+            if self.continuation.end is None:
+                summary["end"] = None
+            summary["limit_points"] = [r["limit_load"] for r in stepped if r.get("limit_point")]
+            summary["bifurcations"] = [r["time"] for r in stepped if r.get("bifurcation")]
         if self.kind == "quasi-static":
             summary["load_steps"] = summary["steps"]  # the older name of the count, kept for readers of old summaries
         for output in self.outputs:

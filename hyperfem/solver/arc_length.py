@@ -170,6 +170,8 @@ class ArcLength:
             displacement weighed alike at the start; 0: cylindrical).
         end: Stop once the load factor passes it (``None``: no such stop).
         min_load: Stop once the load factor falls below it (``None``: no such stop).
+        max_displacement: Stop once a node has moved farther than this
+            (length units; ``None``: no such stop).
         max_steps: Accepted steps before the run stops.
         max_attempts: Attempts (accepted and cut back) before the run fails.
         target_iterations: A step of at most this many corrector iterations is easy (the arc length doubles).
@@ -194,6 +196,7 @@ class ArcLength:
     psi: float = 1.0
     end: float | None = 1.0
     min_load: float | None = None
+    max_displacement: float | None = None
     max_steps: int = 200
     max_attempts: int = 2000
     target_iterations: int = 5
@@ -211,6 +214,8 @@ class ArcLength:
         for name in ("min_increment", "max_increment", "end", "min_load"):
             if getattr(self, name) is not None:
                 check_finite_scalar(getattr(self, name), where, name)
+        if self.max_displacement is not None:
+            check_positive("max_displacement", self.max_displacement, where)
         if not self.min_step <= self.increment <= self.max_step or self.min_step <= 0:
             raise ParameterError(
                 f"{where}: need 0 < min_increment <= increment <= max_increment, got "
@@ -692,9 +697,19 @@ class ArcLengthStage:
         self._dofs = _displacement_dofs(problem)
         self.last_increment = 0.0
         """The load increment of the last committed step."""
-        self.events: dict[str, Any] = {}
-        """What the last committed step found: ``arc_length``, ``negative_pivots``, ``stable``,
-        ``limit_point``, ``limit_load``, ``bifurcation``, ``switched``."""
+        self.steps = 0
+        """Steps committed (those before a restart included)."""
+        self.events: dict[str, Any] = {
+            "arc_length": 0.0,
+            "negative_pivots": self._path.negative0,
+            "stable": None if self._path.negative0 < 0 else True,
+            "limit_point": False,
+            "limit_load": float("nan"),
+            "bifurcation": False,
+            "switched": False,
+        }
+        """What the last committed step found (at the start: the start's pivots): ``arc_length``,
+        ``negative_pivots``, ``stable``, ``limit_point``, ``limit_load``, ``bifurcation``, ``switched``."""
 
     @property
     def time(self) -> float:
@@ -775,6 +790,7 @@ class ArcLengthStage:
                 self._branch = None
         path.negative_prev = negative
         self._time, self.last_increment, self._pending = lam, dlam, None
+        self.steps += 1
 
     def _bisect(
         self, lam0: float, arc: float, before: int, found: tuple[float, float, np.ndarray, int]
@@ -826,6 +842,42 @@ class ArcLengthStage:
     def measure(self) -> dict[str, Any]:
         """Row entries of the last committed step (a :class:`~hyperfem.simulation.Simulation` row)."""
         return dict(self.events)
+
+    def finished(self, record: StepRecord) -> bool:
+        """Whether the run ends after ``record``: ``max_steps``, ``min_load`` or ``max_displacement`` reached."""
+        s = self.settings
+        if self.steps >= s.max_steps or (s.min_load is not None and self._time < s.min_load):
+            return True
+        if s.max_displacement is None:
+            return False
+        zero = np.zeros_like(self.problem.u.x.array)
+        return _max_nodal_distance(self.problem, self._dofs, self.problem.u.x.array, zero) > s.max_displacement
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """What a restart needs besides the state (plain data): the arc-length unit, the direction, the pivots."""
+        path = self._path
+        return {
+            "factor": self.factor,
+            "scale2": path.scale2,
+            "sign": path.sign,
+            "negative0": path.negative0,
+            "negative_prev": path.negative_prev,
+            "switched": path.switched,
+            "steps": self.steps,
+        }
+
+    def resume(self, state: dict[str, Any]) -> None:
+        """Continue from a checkpoint's :meth:`checkpoint_state` (the tangent was taken at the restored state).
+
+        A restart in the middle of the regrowth after a branch switch drops its guard.
+        """
+        path = self._path
+        self.factor = float(state["factor"])
+        path.scale2, path.sign = float(state["scale2"]), float(state["sign"])
+        path.negative0, path.negative_prev = int(state["negative0"]), int(state["negative_prev"])
+        path.switched, self.steps = bool(state["switched"]), int(state["steps"])
+        t = self._run.disp(path.tangent)
+        path.slope = path.sign / math.sqrt(self._run.dot(t, t) + path.scale2)
 
     def close(self) -> None:
         """Free the work vectors."""
@@ -885,12 +937,7 @@ def continue_arc_length(
             on_step(step)
 
     def done(record: StepRecord) -> bool:
-        last = history[-1]
-        return (
-            len(history) >= s.max_steps
-            or (s.min_load is not None and last.time < s.min_load)
-            or (stop is not None and bool(stop(last)))
-        )
+        return stage.finished(record) or (stop is not None and bool(stop(history[-1])))
 
     try:
         run_steps(stage, s.policy(stage.time), accept, stop=done)
