@@ -106,7 +106,7 @@ from hyperfem.materials import (
 )
 from hyperfem.materials.mooney_rivlin import mooney_rivlin, mooney_rivlin_isochoric
 from hyperfem.materials.neo_hookean import neo_hookean_isochoric
-from hyperfem.mesh import FusiformGeometry, beam_mesh, fusiform_mesh, read_mesh
+from hyperfem.mesh import FusiformGeometry, beam_mesh, fusiform_mesh, read_mesh, spherical_shell_mesh
 from hyperfem.problem import (
     BodyForce,
     Clamp,
@@ -132,7 +132,7 @@ from hyperfem.simulation import (
     Render,
     Simulation,
 )
-from hyperfem.solver import LoadStepping, NewtonSolver
+from hyperfem.solver import ArcLength, LoadStepping, NewtonSolver
 
 __all__ = ["Statement", "checkpoint_folder", "model_hash", "must_hit_times", "plan"]
 
@@ -444,11 +444,13 @@ def _mesh(case: Case) -> Statement:
     kwargs: dict[str, object] = {}
     if mesh.size is not None:
         kwargs["h"] = mesh.size
-    if mesh.geometry:
+    if mesh.generator == "spherical_shell":
+        kwargs.update({{"inner_radius": "inner", "outer_radius": "outer"}[k]: v for k, v in mesh.geometry.items()})
+    elif mesh.geometry:
         kwargs["geometry"] = Call.of(FusiformGeometry, **mesh.geometry)
     if mesh.order is not None:
         kwargs["order"] = mesh.order
-    maker = beam_mesh if mesh.generator == "beam" else fusiform_mesh
+    maker = {"beam": beam_mesh, "fusiform": fusiform_mesh, "spherical_shell": spherical_shell_mesh}[mesh.generator]
     return Statement("mesh.generator", "domain", Call.of(maker, **kwargs, comm=Ref("comm")))
 
 
@@ -665,7 +667,8 @@ def _solver(case: Case) -> list[Statement]:
 
 
 def _stepping(case: Case) -> Statement:
-    """``[stepping]``: :class:`~hyperfem.dynamics.TimeStepping` or :class:`~hyperfem.LoadStepping`."""
+    """``[stepping]``: :class:`~hyperfem.dynamics.TimeStepping`, :class:`~hyperfem.LoadStepping` or
+    :class:`~hyperfem.solver.ArcLength`."""
     st = case.stepping
     if st.dynamic:
         options = dict(st.options)
@@ -673,6 +676,8 @@ def _stepping(case: Case) -> Statement:
         if hits:
             options["must_hit"] = tuple(hits)
         return Statement("stepping", "stepping", Call.of(dyn.TimeStepping, **options))
+    if st.continuation:
+        return Statement("stepping", "stepping", Call.of(ArcLength, **st.options))
     stepping = Call.of(LoadStepping, **st.options)
     if st.end is not None:
         stepping = Call.of(Attr(stepping, "policy"), end=st.end)

@@ -112,7 +112,7 @@ LAYOUT: dict[str, Table] = {
         "stepping",
         {"type": S.QUASI_STATIC["type"]},
         on="type",
-        variants=((("quasi-static",), S.QUASI_STATIC), (("dynamic",), S.DYNAMIC)),
+        variants=((("quasi-static",), S.QUASI_STATIC), (("dynamic",), S.DYNAMIC), (("arc_length",), S.ARC_LENGTH)),
         tables={"damping": Table("stepping.damping", S.DAMPING)},
     ),
     "solver": Table("solver", S.SOLVER),
@@ -228,7 +228,9 @@ RULES: dict[str, tuple[dict, ...]] = {
     "mesh": (
         {"oneOf": [_required("file"), _required("generator")]},
         {"if": _required("file"), "then": _none_of("size", "order", "geometry")},
-        {"if": {"not": _is("generator", "fusiform")}, "then": _none_of("geometry")},
+        {"if": {"not": {"properties": {"generator": {"enum": ["fusiform", "spherical_shell"]}},
+                        "required": ["generator"]}},
+         "then": _none_of("geometry")},
     ),
     "material[0]": (
         {"if": _is("law", "arap"),

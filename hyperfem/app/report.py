@@ -47,6 +47,14 @@ def progress_line(row: dict) -> str:
         parts.append(f"rejected {row['rejected']}")
     if row.get("min_J") == row.get("min_J"):  # not nan
         parts.append(f"min J {row['min_J']:.4g}")
+    if row.get("negative_pivots", -1) >= 0:  # a continuation: the stability of the state, what the step passed
+        parts.append(f"neg. pivots {row['negative_pivots']}" + ("" if row.get("stable", True) else " (unstable)"))
+    if row.get("limit_point"):
+        parts.append(f"LIMIT POINT at load factor {row['limit_load']:.6g}")
+    if row.get("bifurcation"):
+        parts.append("BIFURCATION (pivot count changed)")
+    if row.get("switched"):
+        parts.append("switched branch")
     forces: dict[str, list[float]] = {}
     for key, value in row.items():
         if key.startswith("reaction_") and key[-3:-1] == "_F":

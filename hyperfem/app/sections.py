@@ -126,11 +126,13 @@ TOP = {
 MESH = {
     "file": Key("string", example="../meshes/beam_h2.msh",
                 help="gmsh .msh file with named physical groups, relative to the case file (hf.read_mesh)"),
-    "generator": Key("string", choices=("beam", "fusiform"), example="beam",
-                     help="generate the mesh instead: beam (hf.beam_mesh, the 10 x 4 x 4 m beam) or fusiform "
-                     "(hf.mesh.fusiform_mesh, the spindle muscle)"),
+    "generator": Key("string", choices=("beam", "fusiform", "spherical_shell"), example="beam",
+                     help="generate the mesh instead: beam (hf.beam_mesh, the 10 x 4 x 4 m beam), fusiform "
+                     "(hf.mesh.fusiform_mesh, the spindle muscle) or spherical_shell (hf.mesh.spherical_shell_mesh, "
+                     "one eighth of a thick sphere: groups wall, inner, outer, x0, y0, z0)"),
     "size": Key("number", above=0.0, example=2.0,
-                help="generator only: target element size h in m; default 1.0 (beam), 0.004 (fusiform)"),
+                help="generator only: target element size h in m; default 1.0 (beam), 0.004 (fusiform), "
+                "0.35 (spherical_shell)"),
     "order": Key("integer", minimum=1, below=3, default=1,
                  help="generator only: geometric order of the tetrahedra (order)"),
     "geometry": Key("table", help="fusiform generator only: its dimensions (hf.mesh.FusiformGeometry)"),
@@ -142,7 +144,11 @@ GEOMETRY = {
     "tendon_radius": Key("number", above=0.0, default=0.004, help="tendon radius in m, below belly_radius"),
     "tendon_length": Key("number", above=0.0, default=0.015, help="length of each tendon in m"),
     "sections": Key("integer", minimum=3, default=9, help="lofted cross-sections of the belly (odd)"),
+    "inner_radius": Key("number", above=0.0, default=1.0, help="spherical_shell only: the inner radius A"),
+    "outer_radius": Key("number", above=0.0, default=2.0, help="spherical_shell only: the outer radius B > A"),
 }
+SHELL_GEOMETRY = ("inner_radius", "outer_radius")
+"""The keys of ``[mesh.geometry]`` of the spherical_shell generator (the others are the fusiform's)."""
 
 PROBLEM = {
     "formulation": Key("string", choices=FORMULATIONS, default="displacement",
@@ -621,9 +627,9 @@ PROFILES = {
 }
 """Keys of a profile table ``{type = ..., ...}`` besides :data:`PROFILE_TYPE`, per type."""
 
-_STEPPING_TYPE = Key("string", choices=("quasi-static", "dynamic"), default="quasi-static",
+_STEPPING_TYPE = Key("string", choices=("quasi-static", "dynamic", "arc_length"), default="quasi-static",
                      help="quasi-static: a load ramp (hf.LoadStepping); dynamic: a time integration (dyn.TimeStepping "
-                     "and a scheme)")
+                     "and a scheme); arc_length: continuation through limit points (hf.solver.ArcLength)")
 QUASI_STATIC = {
     "type": _STEPPING_TYPE,
     "end": Key("number", default=1.0, help="the final load factor (LoadStepping.policy(end))"),
@@ -634,6 +640,31 @@ QUASI_STATIC = {
     "easy_iterations": Key("integer", minimum=1, default=6,
                            help="a step converging in at most this many Newton iterations is easy"),
     "max_steps": Key("integer", minimum=1, default=10000, help="limit on attempted steps"),
+    "solve_initial": Key("boolean", default=False, help="solve at load factor 0 first (Simulation solve_initial)"),
+}
+ARC_LENGTH = {
+    "type": _STEPPING_TYPE,
+    "increment": Key("number", above=0.0, default=0.1,
+                     help="the first load-factor increment (sets the first arc length; ArcLength increment)"),
+    "min_increment": Key("number", above=0.0, example=0.001,
+                         help="the smallest arc length, in load-factor units of the first step (increment/1024)"),
+    "max_increment": Key("number", above=0.0, example=0.4,
+                         help="the largest arc length, in load-factor units of the first step; default 4 increment"),
+    "psi": Key("number", minimum=0.0, default=1.0,
+               help="the load scaling of the constraint: 1 spherical, 0 cylindrical (Crisfield)"),
+    "end": Key("number", example=1.0, help="stop once the load factor passes it (default: no such stop)"),
+    "min_load": Key("number", example=0.0, help="stop once the load factor falls below it (the descending branch)"),
+    "max_displacement": Key("number", above=0.0, example=1.5,
+                            help="stop once a node has moved farther than this (length units)"),
+    "max_steps": Key("integer", minimum=1, default=200, help="the number of accepted steps, at most"),
+    "target_iterations": Key("integer", minimum=1, default=5,
+                             help="a step of at most this many corrector iterations is easy (the arc doubles)"),
+    "direction": Key("integer", minimum=-1, maximum=1, default=1, help="the sign of the first load increment: 1 or -1"),
+    "inertia": Key("boolean", example=True,
+                   help="count the negative pivots of every converged tangent (LDL^T, MUMPS): stability, "
+                   "bifurcations; default: up to 2e5 unknowns"),
+    "switch_branch": Key("boolean", default=False,
+                         help="at the first bifurcation, leave the path along the critical mode (branch switching)"),
     "solve_initial": Key("boolean", default=False, help="solve at load factor 0 first (Simulation solve_initial)"),
 }
 DYNAMIC = {
@@ -781,7 +812,9 @@ def check_mesh_table(table: Mapping, source: Path) -> MeshSpec:
     """``[mesh]``: a file (relative to the case file ``source``) or a generator with its size, order and geometry."""
     values = check_table(table, MESH, "mesh")
     if ("file" in values) == ("generator" in values):
-        raise CaseFileError("mesh: give either file (a gmsh .msh) or generator (\"beam\", \"fusiform\"), not both")
+        raise CaseFileError(
+            "mesh: give either file (a gmsh .msh) or generator (\"beam\", \"fusiform\", \"spherical_shell\"), not both"
+        )
     if "file" in values:
         extra = [k for k in ("size", "order", "geometry") if k in values]
         if extra:
@@ -790,9 +823,18 @@ def check_mesh_table(table: Mapping, source: Path) -> MeshSpec:
         return MeshSpec(file=path if path.is_absolute() else (source.parent / path).resolve())
     geometry = {}
     if "geometry" in values:
-        if values["generator"] != "fusiform":
-            raise CaseFileError("mesh.geometry: only the fusiform generator has geometry parameters")
+        generator = values["generator"]
+        if generator not in ("fusiform", "spherical_shell"):
+            raise CaseFileError(
+                "mesh.geometry: only the fusiform and spherical_shell generators have geometry parameters"
+            )
         geometry = check_table(values["geometry"], GEOMETRY, "mesh.geometry")
+        shell = generator == "spherical_shell"
+        wrong = [k for k in geometry if (k in SHELL_GEOMETRY) != shell]
+        if wrong:
+            raise CaseFileError(f"mesh.geometry.{wrong[0]}: not a parameter of the {generator} generator")
+        if shell and not geometry.get("inner_radius", 1.0) < geometry.get("outer_radius", 2.0):
+            raise CaseFileError("mesh.geometry.outer_radius: must exceed inner_radius")
     return MeshSpec(
         generator=values["generator"], size=values.get("size"), order=values.get("order"), geometry=geometry
     )
@@ -1059,15 +1101,29 @@ def _load(index: int, table: Mapping) -> LoadSpec:
 def check_stepping(table: Mapping) -> SteppingSpec:
     """``[stepping]``: a quasi-static ramp (default) or a time integration (``type = "dynamic"``)."""
     kind = check_value(table.get("type", "quasi-static"), QUASI_STATIC["type"], "stepping.type")
-    own, other, other_kind = (QUASI_STATIC, DYNAMIC, "dynamic") if kind == "quasi-static" else (
-        DYNAMIC, QUASI_STATIC, "quasi-static"
-    )
+    kinds = {"quasi-static": (QUASI_STATIC, "load ramp"), "dynamic": (DYNAMIC, "time integration"),
+             "arc_length": (ARC_LENGTH, "continuation")}
+    own = kinds[kind][0]
     for key in table:
-        if key not in own and key in other:
+        if key in own:
+            continue
+        for other_kind, (other, what) in kinds.items():
+            if key in other:
+                raise CaseFileError(
+                    f"stepping.{key}: a key of {other_kind} stepping, not of {kind} stepping "
+                    f"(set type = \"{other_kind}\" for a {what})"
+                )
+    if kind == "arc_length":
+        values = check_table(table, ARC_LENGTH, "stepping", what="arc-length stepping")
+        if "min_load" in values and "end" in values and not values["min_load"] < values["end"]:
             raise CaseFileError(
-                f"stepping.{key}: a key of {other_kind} stepping, not of {kind} stepping "
-                f"(set type = \"{other_kind}\" for a {'time integration' if other_kind == 'dynamic' else 'load ramp'})"
+                f"stepping.min_load: must lie below stepping.end, got {values['min_load']!r} and {values['end']!r}"
             )
+        if values.get("direction", 1) not in (1, -1):
+            raise CaseFileError(f"stepping.direction: must be 1 or -1, got {values['direction']!r}")
+        options = {k: v for k, v in values.items() if k not in ("type", "solve_initial")}
+        options.setdefault("end", None)  # no default end: a continuation stops by max_steps or another limit
+        return SteppingSpec(type=kind, options=options, solve_initial=values.get("solve_initial", False))
     if kind == "quasi-static":
         values = check_table(table, QUASI_STATIC, "stepping", what="quasi-static stepping")
         names = {"increment": "initial_increment"}
@@ -1139,6 +1195,11 @@ def check_output(
     values = check_table(table, OUTPUT, "output")
     if "times" in values and "every" in values:
         raise CaseFileError("output.every: give either times or every, not both")
+    if stepping.continuation and ("times" in values or "every" in values):
+        key = "times" if "times" in values else "every"
+        raise CaseFileError(
+            f"output.{key}: not with arc_length stepping (the load factor goes up and down; every step is written)"
+        )
     end = float(stepping.options["t_end"]) if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
     times = values.get("times")
     if times is not None:

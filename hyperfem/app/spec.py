@@ -306,9 +306,10 @@ class SteppingSpec:
     """``[stepping]``.
 
     Attributes:
-        type: ``"quasi-static"`` or ``"dynamic"``.
-        options: The given keyword arguments of :class:`~hyperfem.LoadStepping` or
-            :class:`~hyperfem.dynamics.TimeStepping` (case names translated).
+        type: ``"quasi-static"``, ``"dynamic"`` or ``"arc_length"``.
+        options: The given keyword arguments of :class:`~hyperfem.LoadStepping`,
+            :class:`~hyperfem.dynamics.TimeStepping` or :class:`~hyperfem.solver.ArcLength`
+            (case names translated).
         end: Final load factor of a quasi-static ramp (``None``: 1).
         solve_initial: Solve for equilibrium at the start (quasi-static).
         scheme: Time integrator (dynamic).
@@ -332,6 +333,11 @@ class SteppingSpec:
     def dynamic(self) -> bool:
         """Whether the run is a time integration."""
         return self.type == "dynamic"
+
+    @property
+    def continuation(self) -> bool:
+        """Whether the run is an arc-length continuation."""
+        return self.type == "arc_length"
 
 
 @dataclass(frozen=True)

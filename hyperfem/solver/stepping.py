@@ -69,6 +69,9 @@ __all__ = [
     "solve_quasistatic",
 ]
 
+UNBOUNDED = 1e299
+"""Ends at or beyond this magnitude are not reached (:meth:`_Course.of` does not name them)."""
+
 LANDINGS = ("clip", "equal")
 """How steps land on must-hit times (see :class:`StepPolicy`)."""
 
@@ -605,6 +608,10 @@ class _Course:
         hits = sorted({h for h in policy.must_hit if end + eps < h < t0 - eps} | {end}, reverse=True)
         return cls(end, -1.0, eps, hits)
 
+    def of(self) -> str:
+        """`` of END`` for messages (empty for an end no run reaches: a continuation that stops by other means)."""
+        return f" of {self.end:g}" if abs(self.end) < UNBOUNDED else ""
+
     def remaining(self, t: float) -> bool:
         """Whether ``t`` falls short of the end."""
         return t < self.end - self.eps if self.sign > 0 else t > self.end + self.eps
@@ -655,7 +662,7 @@ def _step(
         if control.attempts > policy.max_steps:
             raise ConvergenceError(
                 f"stepping exceeded {policy.max_steps} steps (rejected attempts included) at t = {t:g} "
-                f"of {course.end:g}",
+                f"{course.of()}",
                 t,
                 history,
             )
@@ -671,7 +678,7 @@ def _step(
         control.dt = h
         if h < policy.min_step:
             raise ConvergenceError(
-                f"stepping failed: reached t = {t:g} of {course.end:g}; step {h:g} below the minimum "
+                f"stepping failed: reached t = {t:g}{course.of()}; step {h:g} below the minimum "
                 f"{policy.min_step:g} ({attempt.reason})",
                 t,
                 history,
