@@ -450,7 +450,8 @@ def _mesh(case: Case) -> Statement:
         kwargs["geometry"] = Call.of(FusiformGeometry, **mesh.geometry)
     if mesh.order is not None:
         kwargs["order"] = mesh.order
-    maker = {"beam": beam_mesh, "fusiform": fusiform_mesh, "spherical_shell": spherical_shell_mesh}[mesh.generator]
+    makers = {"beam": beam_mesh, "fusiform": fusiform_mesh, "spherical_shell": spherical_shell_mesh}
+    maker = makers[str(mesh.generator)]  # a generator when there is no file
     return Statement("mesh.generator", "domain", Call.of(maker, **kwargs, comm=Ref("comm")))
 
 

@@ -42,7 +42,7 @@ from hyperfem.materials.parameters import LameParameters
 from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.shell import spherical_shell_mesh
 from hyperfem.problem import HyperelasticProblem, MixedHyperelasticProblem, SplitEnergy
-from hyperfem.problem.boundary_conditions import Clamp, PrescribedDisplacement
+from hyperfem.problem.boundary_conditions import BoundaryCondition, Clamp, PrescribedDisplacement
 from hyperfem.problem.loads import BodyForce, FollowerPressure
 
 __all__ = [
@@ -170,7 +170,7 @@ def shallow_arch(rise: float = 0.5, cells: int = 16, comm: MPI.Comm = MPI.COMM_W
         },
         source=f"shallow_arch(rise={rise}, cells={cells})",
     )
-    bcs = [
+    bcs: list[BoundaryCondition] = [
         Clamp("x0"),
         Clamp("x1"),
         PrescribedDisplacement("z0", [0.0], components=[2]),
