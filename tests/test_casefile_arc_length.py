@@ -48,6 +48,15 @@ def test_the_example_case_passes_the_pressure_maximum(shared_tmp):
     assert rows[-1]["probe_displacement"][0][0] > 1.1  # stopped by max_displacement
     assert {r["negative_pivots"] for r in rows} == {rows[0]["negative_pivots"], rows[0]["negative_pivots"] + 1}
     assert sum(r["limit_point"] for r in rows) == 1
+    # hyperfem plot: the path in the load factor (not a dynamic run), the limit point starred
+    from hyperfem.simulation.plots import load_displacement, plot_run, read_rows
+
+    made = plot_run(shared_tmp, comm=MPI.COMM_WORLD)
+    if MPI.COMM_WORLD.rank == 0:
+        assert sorted(p.name for p in made) == ["inflation_convergence_newton.png", "inflation_load_displacement.png"]
+        table = read_rows(shared_tmp / "inflation.csv")
+        assert sum(r["limit_point"] for r in table) == 1.0 and {r["stable"] for r in table} == {0.0, 1.0}
+        assert load_displacement(shared_tmp / "inflation.csv", output=shared_tmp / "p.png").stat().st_size > 0
 
 
 @pytest.mark.parametrize(

@@ -284,7 +284,7 @@ def save_checkpoint(
         "time": sim.time,
         "completed": sim.completed,
         "stepper": dataclasses.asdict(sim.stepper),
-        "stage": _stage_state(sim),
+        "stage_state": _stage_state(sim),
         "policy": {f.name: getattr(sim.policy, f.name) for f in dataclasses.fields(sim.policy)},
         "wall_time": sim.wall_time,
         "rows": history.refer("rows", sim.rows),

@@ -577,11 +577,16 @@ class Derived(Output):
 
 def format_summary(summary: dict) -> str:
     """Short human-readable form of :meth:`Simulation.summary <hyperfem.simulation.Simulation.summary>`."""
-    steps = "load steps" if summary.get("stage") == "quasi-static" else "time steps"
+    kinds = {"quasi-static": "load steps", "arc-length": "continuation steps"}
+    steps = kinds.get(summary.get("stage", ""), "time steps")
     lines = [
         f"{summary['name']}: {summary['dofs']} dofs, {summary['cells']} cells, {summary['ranks']} rank(s)",
         f"  {steps}: {summary['steps']}, Newton iterations per step: {summary['newton_iterations']}",
     ]
+    if summary.get("stage") == "arc-length":
+        limits = ", ".join(f"{v:.6g}" for v in summary.get("limit_points", [])) or "none"
+        bifurcations = ", ".join(f"{v:.6g}" for v in summary.get("bifurcations", [])) or "none"
+        lines.append(f"  limit points at load factor: {limits}; bifurcations near load factor: {bifurcations}")
     if "probe_displacement" in summary:
         for p, d in zip(summary["probe_points"], summary["probe_displacement"], strict=True):
             lines.append(f"  displacement at {tuple(p)}: {np.array2string(np.asarray(d), precision=6)} m")

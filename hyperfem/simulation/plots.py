@@ -32,7 +32,7 @@ import re
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -67,9 +67,15 @@ def _pyplot() -> ModuleType:
     return plt
 
 
+_FLAGS = {"True": 1.0, "False": 0.0}
+"""Booleans as the CSV writes them (a continuation's ``stable``, ``limit_point``, ``bifurcation``)."""
+
+
 def _number(value: str | float | None) -> float | None:
     if value is None:
         return None
+    if isinstance(value, str) and value in _FLAGS:
+        return _FLAGS[value]
     try:
         return float(value)
     except (TypeError, ValueError):
@@ -124,7 +130,7 @@ def read_rows(source: str | Path) -> list[dict[str, float]]:
     if not raw:
         raise OutputError(f"{source}: no rows")
     keys = [k for k in raw[0] if all(_number(r.get(k)) is not None for r in raw)]
-    return [{k: float(r[k]) for k in keys} for r in raw]
+    return [{k: float(_number(r[k])) for k in keys} for r in raw]  # type: ignore[arg-type]  # checked above
 
 
 def _run_summary(source: Path) -> dict:
@@ -147,7 +153,7 @@ def _point(values: Sequence[float]) -> str:
 
 
 def _dynamic(rows: list[dict], meta: dict) -> bool:
-    return meta.get("stage", "quasi-static") != "quasi-static" or "kinetic_energy" in rows[0]
+    return meta.get("stage", "quasi-static") == "dynamic" or "kinetic_energy" in rows[0]
 
 
 ENERGIES = {
@@ -228,7 +234,9 @@ def load_displacement(
         source: Output folder, JSON summary with rows, or CSV (:func:`read_rows`).
         load: Column on the vertical axis; default the reaction force
             component (``reaction_*_F?``, not the total) largest at the end,
-            else ``time`` (the load factor).
+            else ``time`` (the load factor); for an arc-length run ``time``
+            (the path in the load factor, with its limit points starred,
+            its bifurcations marked and its unstable states hollow).
         displacement: Column on the horizontal axis; default the probe or
             boundary-average displacement largest at the end.
         output: PNG file (default ``<name>_load_displacement.png`` beside the file read).
@@ -244,8 +252,10 @@ def load_displacement(
         return None
     source = Path(source)
     rows = read_rows(source)
+    meta = _run_summary(source)
+    continuation = meta.get("stage") == "arc-length" or "limit_point" in rows[0]
     forces = [k for k in rows[0] if k.startswith("reaction_") and "_F" in k and not k.startswith("reaction_total_")]
-    load = load or _largest(rows, forces) or "time"
+    load = load or ("time" if continuation else _largest(rows, forces)) or "time"
     candidates = _columns(rows, "probe_displacement") + [k for k in rows[0] if re.match(r"u\d+_", k)]
     displacement = displacement or _largest(rows, candidates)
     for name, what in ((load, "load"), (displacement, "displacement")):
@@ -256,11 +266,13 @@ def load_displacement(
                 f"load_displacement: no {what} column {name!r} in {source} (columns: {', '.join(rows[0])})"
             )
     assert displacement is not None  # checked above
-    meta = _run_summary(source)
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.8))
     label = meta.get("name", "run")
-    ax.plot([r[displacement] for r in rows], [r[load] for r in rows], "o-", ms=3, label=f"{label} (one point per step)")
+    x, y = [r[displacement] for r in rows], [r[load] for r in rows]
+    ax.plot(x, y, "o-", ms=3, label=f"{label} (one point per step)")
+    if continuation:
+        _continuation_marks(ax, rows, x, y, load)
     ax.set_xlabel(quantity(displacement, meta))
     ax.set_ylabel(quantity(load, {**meta, "stage": "quasi-static"}))
     ax.set_title(_title(meta, "load–displacement"))
@@ -271,6 +283,21 @@ def load_displacement(
     fig.savefig(out, dpi=120)
     plt.close(fig)
     return out
+
+
+def _continuation_marks(ax: Any, rows: list[dict], x: list[float], y: list[float], load: str) -> None:
+    """Hollow markers on unstable states, a star at each limit point (its located load), a cross at bifurcations."""
+    unstable = [i for i, r in enumerate(rows) if r.get("stable") == 0.0]
+    if unstable:
+        ax.plot([x[i] for i in unstable], [y[i] for i in unstable], "o", ms=6, mfc="white", mec="C0",
+                label="unstable under load control")
+    limits = [i for i, r in enumerate(rows) if r.get("limit_point")]
+    if limits:
+        located = [rows[i]["limit_load"] if load == "time" else y[i] for i in limits]
+        ax.plot([x[i] for i in limits], located, "k*", ms=11, label="limit point (located load)")
+    bifurcations = [i for i, r in enumerate(rows) if r.get("bifurcation")]
+    if bifurcations:
+        ax.plot([x[i] for i in bifurcations], [y[i] for i in bifurcations], "rx", ms=10, mew=2, label="bifurcation")
 
 
 def _convergence_file(source: Path) -> Path:

@@ -353,8 +353,8 @@ class Simulation:
         if self.continuation is not None:
             assert self.solver is not None and isinstance(self.problem, SolidProblem)  # __init__
             self.stage = ArcLengthStage(self.problem, self.solver, self.continuation)
-            if meta is not None and meta.get("stage"):
-                self.stage.resume(meta["stage"])
+            if meta is not None and meta.get("stage_state"):
+                self.stage.resume(meta["stage_state"])
         else:
             self.stage = self._stage_type(self.problem, self.solver)
         domain = self.fields.base.domain
