@@ -86,6 +86,7 @@ demos: bootstrap
 	$(PY) demos/fold.py
 	$(PY) demos/fit_treloar.py
 	$(PY) demos/relaxation.py
+	$(PY) demos/inflation.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
