@@ -249,16 +249,22 @@ class ViscousHistory:
 
     # -- checkpoints --------------------------------------------------------------------
     def state_functions(self) -> dict[str, fem.Function]:
-        """The fields of the history at the accepted state now in the unknown (collective).
+        r"""The fields of the history at the accepted state now in the unknown (collective).
 
         Called at an accepted state (a checkpoint after a step): a state not yet
-        taken in is taken in first, so the fields belong to the current time.
+        taken in is taken in first, so the fields belong to the current time, and
+        the step's constants become those of a step of length 0
+        (:math:`\gamma = 1`, :math:`B = \sum_i Q_i^{n+1} - g_i S_\text{iso}^{n+1}`), so
+        the energy's stress at this state stays the model's,
+        :math:`S_\text{vol} + g_\infty S_\text{iso} + \sum_i Q_i^{n+1}` (outputs after the
+        checkpoint, reactions or stress fields, see the same stress as those before it).
         """
         m = self.material
         if m.Q is None or m.S_previous is None:
             return {}
         if self._accepted and not self._same_state(self._accepted[-1]):
             self._accept()
+            self._set_step(0.0)
         out = {f"{m.name}_Q{i}": Q.function for i, Q in enumerate(m.Q)}
         out[f"{m.name}_S"] = m.S_previous.function
         return out
