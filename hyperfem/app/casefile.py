@@ -158,6 +158,7 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
         loads = sections.check_loads(top.get("load", []))
         contacts = sections.check_contacts(top.get("contact", []), source)
         stepping = sections.check_stepping(top.get("stepping", {}))
+        sections.check_viscoelastic_use(materials, stepping)
         if stepping.dynamic and stepping.scheme != "quasi_static":
             for m in materials:
                 if m.density is None:

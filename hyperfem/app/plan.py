@@ -71,8 +71,10 @@ from hyperfem.materials import (
     MooneyRivlinParameters,
     MuscleParameters,
     OgdenParameters,
+    PronySeries,
     ReducedPolynomialParameters,
     VerondaWestmannParameters,
+    Viscoelastic,
     WeissParameters,
     YeohParameters,
     arruda_boyce,
@@ -237,13 +239,14 @@ _ENERGIES = {
 _ROTATION_LAWS = {"fixed_corotated": FixedCorotated, "corotational_linear": CorotationalLinear, "arap": ARAP}
 
 
-def _lame_material(m: MaterialSpec, params: str, material: str, mixed: bool) -> list[Statement]:
-    """``params`` and ``material`` of an isotropic law (:data:`~hyperfem.app.spec.LAME_LAWS`)."""
+def _lame_material(m: MaterialSpec, params: str, material: str, split: bool) -> list[Statement]:
+    """``params`` and ``material`` of an isotropic law (:data:`~hyperfem.app.spec.LAME_LAWS`);
+    ``split``: its :class:`~hyperfem.problem.SplitEnergy` (mixed or viscoelastic; neo_hookean only)."""
     if m.law == "arap" and set(m.parameters) == {"mu"}:
         return [Statement(m.key, material, Call.of(ARAP, m.parameters["mu"]))]
     lame, comment = _lame(m)
     out = [Statement(m.key, params, lame, comment=comment)]
-    if mixed:  # neo_hookean: mu/2 (I1bar - 3) + U(theta)
+    if split:  # neo_hookean: mu/2 (I1bar - 3) + U(theta)
         K = m.parameters["bulk_modulus"] if "bulk_modulus" in m.parameters else Attr(Ref(params), "bulk_modulus")
         iso = Energy(neo_hookean_isochoric, (Attr(Ref(params), "mu"),))
         args = [iso, K] + ([m.volumetric] if m.volumetric else [])
@@ -294,10 +297,33 @@ but ``ogden``, whose coefficients may be written in another code's convention (:
 
 
 def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> list[Statement]:
-    """``params`` and ``material`` statements of one material."""
+    """``params`` and ``material`` statements of one material; a viscoelastic one wraps its split law."""
+    out = _elastic_material(m, suffix, case, activation)
+    if m.viscoelastic is None:
+        return out
+    material, elastic = f"material{suffix}", f"elastic{suffix}"
+    split = out.pop()  # the SplitEnergy, renamed
+    out.append(Statement(split.key, elastic, split.value, comment=split.comment))
+    visco = m.viscoelastic
+    prony = Call.of(PronySeries, g=visco.g, tau=visco.tau)
+    kwargs: dict[str, object] = {}
+    if visco.time_scale is not None:
+        kwargs["time_scale"] = visco.time_scale
+    if suffix:  # names of its history fields and checkpoint entries
+        kwargs["name"] = f"viscoelastic{suffix}"
+    comment = ("the problem's time is in s" if visco.time_scale is None else
+               f"{visco.time_scale!r} s per unit of the problem's time")
+    value = Call.of(Viscoelastic, Ref(elastic), prony, **kwargs)
+    out.append(Statement(f"{m.key}.viscoelastic", material, value, comment=comment))
+    return out
+
+
+def _elastic_material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> list[Statement]:
+    """``params`` and ``material`` statements of one elastic law (its SplitEnergy when mixed or viscoelastic)."""
     params, material = f"params{suffix}", f"material{suffix}"
+    split_law = case.mixed or m.viscoelastic is not None
     if m.law in LAME_LAWS:
-        return _lame_material(m, params, material, case.mixed)
+        return _lame_material(m, params, material, split_law)
     kwargs: dict[str, object] = dict(m.parameters)
     if m.volumetric:
         kwargs["volumetric"] = m.volumetric
@@ -326,7 +352,7 @@ def _material(m: MaterialSpec, suffix: str, case: Case, activation: object) -> l
         out = [Statement(m.key, params, Call.of(maker, **kwargs))]
         iso = Energy(muscle_isochoric, (Ref("fibres"), activation, Ref(params)))
         whole = Energy(muscle, (Ref("fibres"), activation, Ref(params)))
-    if case.mixed:
+    if split_law:
         # (Ogden: its known shear modulus spares compiling its tangent at F = I for the Schur preconditioner)
         known = {"shear_modulus": Attr(Ref(params), "shear_modulus")} if m.law == "ogden" else {}
         split = Call.of(SplitEnergy, iso, Attr(Ref(params), "K"), Attr(Ref(params), "volumetric"), **known)
@@ -360,7 +386,10 @@ def model_hash(case: Case) -> str:
 
     Stepping, solver and output may change between a run and its restart (e.g. a later ``t_end``).
     """
-    model: list[object] = [case.mesh, case.problem, case.materials, case.fibres, case.bcs, case.loads]
+    # (an elastic material keeps the hash it had before viscoelasticity existed)
+    materials = [{k: v for k, v in dataclasses.asdict(m).items() if k != "viscoelastic" or v is not None}
+                 for m in case.materials]
+    model: list[object] = [case.mesh, case.problem, materials, case.fibres, case.bcs, case.loads]
     if case.contacts:  # (cases without contact keep the hash they had before contact existed)
         # (and contacts without a path or rotation the hash they had before those existed)
         model.append([{k: v for k, v in dataclasses.asdict(c).items() if k not in ("path", "rotation") or v is not None}

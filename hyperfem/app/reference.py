@@ -100,6 +100,7 @@ LAYOUT: dict[str, Table] = {
             (("muscle",), S._MUSCLE),
             *(((law,), S.LAW_KEYS[law]) for law in (*RUBBER_LAWS, *TISSUE_LAWS)),
         ),
+        tables={"viscoelastic": Table("material.viscoelastic", S.VISCOELASTIC)},
     ),
     "fibres": Table("fibres", S.FIBRE_COMMON, on="type", variants=_by_type(S.FIBRES)),
     "second_fibres": Table("second_fibres", S.FIBRE_COMMON, on="type", variants=_by_type(S.FIBRES)),
@@ -236,8 +237,10 @@ RULES: dict[str, tuple[dict, ...]] = {
         {"if": _is("law", "arap"),
          "then": _pairs(("E", "nu"), ("mu", "lambda"), ("mu", "bulk_modulus"), ("mu",)),
          "else": _pairs(("E", "nu"), ("mu", "lambda"), ("mu", "bulk_modulus"))},
+        {"if": {"not": _is("law", "neo_hookean")}, "then": _none_of("viscoelastic")},
     ),
-    "material[2]": ({"if": {"not": _required("preset")}, "then": _required("c1", "c2", "K", "T_max")},),
+    "material[2]": ({"if": {"not": _required("preset")}, "then": _required("c1", "c2", "K", "T_max")},
+                    _none_of("viscoelastic")),
     "stepping[1]": (
         {"if": {"properties": {"scheme": {"not": {"const": "newmark"}}}, "required": ["scheme"]},
          "then": _none_of("beta", "gamma")},
@@ -253,7 +256,8 @@ RULES: dict[str, tuple[dict, ...]] = {
 }
 """Rules between keys that :mod:`hyperfem.app.sections` checks in code, as JSON Schema, by table path
 (``material[2]``: of its third variant): mesh file or generator; the elastic constants as one pair;
-muscle parameters without a preset; scheme parameters; the boundaries of a self, pair (two) or tool contact;
+muscle parameters without a preset; viscoelasticity only for the laws of
+:data:`~hyperfem.app.spec.VISCOELASTIC_LAWS`; scheme parameters; the boundaries of a self, pair (two) or tool contact;
 output times or every; checkpoints off."""
 
 
@@ -426,8 +430,8 @@ class _Writer:
             self.keys(common, active, live)
             self.keys(_without(own, table.on), active, live)
             for name, sub in table.tables.items():
-                if name in own:
-                    self.table(sub, own[name], (), False)
+                if name in own or (first and name in table.keys):  # a common key's table: once, at the first
+                    self.table(sub, {**table.keys, **own}[name], (), False)
             if live:
                 self.shapes({**table.keys, **own}, table.path)
 

@@ -34,6 +34,7 @@ from hyperfem.app.spec import (
     REPRESENTATIONS,
     SCHEMES,
     SECOND_FIBRE_LAWS,
+    VISCOELASTIC_LAWS,
     BCSpec,
     ContactRotationSpec,
     ContactSpec,
@@ -47,6 +48,7 @@ from hyperfem.app.spec import (
     RenderSpec,
     SolverSpec,
     SteppingSpec,
+    ViscoelasticSpec,
 )
 from hyperfem.errors import ParameterError
 from hyperfem.loading.motion import Waypoints
@@ -57,6 +59,7 @@ from hyperfem.materials import (
     HolzapfelGasserOgdenParameters,
     MooneyRivlinParameters,
     OgdenParameters,
+    PronySeries,
     ReducedPolynomialParameters,
     VerondaWestmannParameters,
     WeissParameters,
@@ -83,6 +86,7 @@ __all__ = [
     "check_profile",
     "check_solver",
     "check_stepping",
+    "check_viscoelastic_use",
 ]
 
 VOLUMETRIC = tuple(VOLUMETRIC_LAWS)
@@ -176,6 +180,11 @@ _COMMON_MATERIAL = {
                   "whole body"),
     "density": Key("number", above=0.0, example=1000.0,
                    help="mass density in kg/m^3 (dyn.MassDensity); needed by a dynamic run"),
+    "viscoelastic": Key("table", help="finite-strain viscoelasticity: a Prony series relaxes the isochoric stress "
+                        "(hf.materials.Viscoelastic around the law's SplitEnergy; Simo 1987), the volumetric one "
+                        "stays elastic; laws " + ", ".join(VISCOELASTIC_LAWS) + " (neo_hookean: its split mu/2 "
+                        "(I1bar - 3) + U(J), as with formulation = \"mixed\", not the compressible law); "
+                        "default none (elastic)"),
 }
 _LAME = {
     "E": Key("number", above=0.0, example=1.0e6,
@@ -187,7 +196,8 @@ _LAME = {
     "bulk_modulus": Key("number", above=0.0, example=8.3e5,
                         help="bulk modulus K in Pa, with mu (lambda = K - 2 mu / 3; mixed: the K of U(theta))"),
     "volumetric": Key("string", choices=VOLUMETRIC, default="log",
-                      help="formulation = \"mixed\" only: the volumetric energy U(theta) (SplitEnergy volumetric)"),
+                      help="formulation = \"mixed\" or a viscoelastic neo_hookean only: the volumetric energy "
+                      "U(theta) (SplitEnergy volumetric)"),
 }
 _MOONEY = {
     "c1": Key("number", above=0.0, required=True, example=3.0e4,
@@ -361,6 +371,23 @@ PARAMETER_CLASSES: dict[str, Callable[..., object]] = {
 """Laws whose keys are the fields of a parameter class (ogden: the arguments of
 ``OgdenParameters.from_convention``): made once while checking, so that its one-line
 :class:`~hyperfem.errors.ParameterError` names the entry before anything is built."""
+
+VISCOELASTIC = {
+    "g": Key("numbers", minimum=0.0, required=True, example=(0.3, 0.2),
+             help="relative moduli g_i >= 0 of the relaxation function g(t) = g_inf + sum g_i exp(-t/tau_i) of the "
+             "isochoric stress, sum g_i < 1 (g_inf = 1 - sum g_i is what is left after a long hold; "
+             "hf.materials.PronySeries)"),
+    "tau": Key("numbers", above=0.0, required=True, example=(0.1, 1.0),
+               help="relaxation times tau_i in s, one per g_i"),
+    "time_scale": Key("number", above=0.0, default=1.0,
+                      help="seconds per unit of the run's time (Viscoelastic time_scale). Quasi-static: the load "
+                      "factor is the clock, so how fast the ramp goes decides how much relaxes: 1 reads it in s "
+                      "(a ramp profile t1 = 0.5 then stepping.end = 3: pulled in 0.5 s, held to 3 s); T: the load "
+                      "factor 0 -> 1 lasts T s. Dynamic: the time is in s, so 1 only. Steps should land on the ends "
+                      "of ramps (growth = 1 and an increment that divides them): a kink inside a step costs the "
+                      "second order in time"),
+}
+"""Keys of ``[material.viscoelastic]``: :class:`~hyperfem.materials.PronySeries` and the time scale."""
 
 FIBRE_COMMON = {
     "type": Key("string", required=True, choices=FIBRE_TYPES, example="laplace",
@@ -840,7 +867,8 @@ def check_mesh_table(table: Mapping, source: Path) -> MeshSpec:
     )
 
 
-def _elastic_pair(values: Mapping, law: str, where: str, mixed: bool) -> None:
+def _elastic_pair(values: Mapping, law: str, where: str, split: bool) -> None:
+    """The elastic constants as one pair; ``volumetric`` only where the law is split (``split``: mixed or viscous)."""
     given = {k for k in ("E", "nu", "mu", "lambda", "bulk_modulus") if k in values}
     pairs = [{"E", "nu"}, {"mu", "lambda"}, {"mu", "bulk_modulus"}]
     if law == "arap":
@@ -849,9 +877,10 @@ def _elastic_pair(values: Mapping, law: str, where: str, mixed: bool) -> None:
         need = "E and nu, mu and lambda, or mu and bulk_modulus" + (", or mu alone" if law == "arap" else "")
         shown = ", ".join(sorted(given)) or "none"
         raise CaseFileError(f"{where}: give the elastic constants as {need} (given: {shown})")
-    if "volumetric" in values and not mixed:
+    if "volumetric" in values and not split:
         raise CaseFileError(
-            f"{where}.volumetric: only used with formulation = \"mixed\" (law {law!r} has its own volume term)"
+            f"{where}.volumetric: only used with formulation = \"mixed\" or a [material.viscoelastic] table "
+            f"(law {law!r} has its own volume term)"
         )
 
 
@@ -879,14 +908,25 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_sec
             f"{where}.nu: Poisson's ratio must lie in (-1, 0.5), got {nu!r}; for a nearly incompressible "
             "solid use nu < 0.5 (e.g. 0.499) or formulation = \"mixed\" with a bulk_modulus"
         )
+    if "viscoelastic" in table and law not in VISCOELASTIC_LAWS:
+        why = ("its isochoric part holds the active fibre stress, which a Prony series would relax too"
+               if law == "muscle" else "it has no isochoric/volumetric split whose isochoric part could relax")
+        raise CaseFileError(
+            f"{where}.viscoelastic: law {law!r} cannot be viscoelastic: {why} "
+            f"(viscoelastic laws: {', '.join(VISCOELASTIC_LAWS)})"
+        )
     values = check_table(table, {**_COMMON_MATERIAL, **own}, where, what=f"a material with law {law!r}")
+    viscoelastic = _viscoelastic(values["viscoelastic"], join(where, "viscoelastic")) if "viscoelastic" in values \
+        else None
+    if mixed and viscoelastic is not None:
+        raise CaseFileError(f"{where}.viscoelastic: not yet with formulation = \"mixed\"; use \"displacement\"")
     if mixed and law not in MIXED_LAWS:
         raise CaseFileError(
             f"{where}.law: {law!r} has no isochoric/volumetric split for formulation = \"mixed\" "
             f"(mixed laws: {', '.join(MIXED_LAWS)}); use formulation = \"displacement\""
         )
     if law in LAME_LAWS:
-        _elastic_pair(values, law, where, mixed)
+        _elastic_pair(values, law, where, mixed or viscoelastic is not None)
     if law in FIBRE_LAWS and not has_fibres:
         raise CaseFileError(f"{where}: law \"{law}\" needs fibre directions: add a [fibres] table")
     if law in SECOND_FIBRE_LAWS and not has_second:
@@ -917,7 +957,7 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_sec
                     raise CaseFileError(f"{where}.activation: must lie in [0, 1], got {raw!r}")
             else:
                 activation = check_profile(raw, join(where, "activation"))
-    skip = {"law", "region", "density", "volumetric", "preset", "activation"}
+    skip = {"law", "region", "density", "volumetric", "preset", "activation", "viscoelastic"}
     return MaterialSpec(
         key=where,
         law=law,
@@ -927,7 +967,47 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_sec
         volumetric=values.get("volumetric"),
         preset=values.get("preset"),
         activation=activation,
+        viscoelastic=viscoelastic,
     )
+
+
+def _viscoelastic(table: Mapping, where: str) -> ViscoelasticSpec:
+    """``[material.viscoelastic]``: a valid :class:`~hyperfem.materials.PronySeries` and the time scale."""
+    values = check_table(table, VISCOELASTIC, where, what="a viscoelastic table")
+    try:
+        PronySeries(g=values["g"], tau=values["tau"])
+    except ParameterError as exc:
+        raise CaseFileError(f"{where}: {exc}") from None
+    return ViscoelasticSpec(g=values["g"], tau=values["tau"], time_scale=values.get("time_scale"))
+
+
+def check_viscoelastic_use(materials: Sequence[MaterialSpec], stepping: SteppingSpec) -> None:
+    """A viscoelastic material needs a clock that runs forward: a quasi-static ramp to ``end > 0`` (its load
+    factor read as time) or a time integration in s whose loads are at the end of the step."""
+    for m in materials:
+        visco = m.viscoelastic
+        if visco is None:
+            continue
+        where = join(m.key, "viscoelastic")
+        if stepping.continuation:
+            raise CaseFileError(
+                f"{where}: not with stepping type = \"arc_length\" (its load factor is no time: it falls past a "
+                "limit point); use a quasi-static ramp or a dynamic run"
+            )
+        if stepping.dynamic and stepping.scheme == "generalized_alpha":
+            raise CaseFileError(
+                f"{where}: not with scheme = \"generalized_alpha\" (it evaluates the loads inside the step, "
+                "alpha_f > 0, which the history cannot follow); use newmark, backward_euler or quasi_static"
+            )
+        if stepping.dynamic and visco.time_scale not in (None, 1.0):
+            raise CaseFileError(
+                f"{where}.time_scale: a dynamic run's time is in s, so time_scale must be 1, got {visco.time_scale!r}"
+            )
+        if not stepping.dynamic and stepping.end is not None and not stepping.end > 0.0:
+            raise CaseFileError(
+                f"stepping.end: a viscoelastic material ({m.key}) needs time to run forward, end > 0, "
+                f"got {stepping.end!r}"
+            )
 
 
 def check_materials(

@@ -22,6 +22,7 @@ __all__ = [
     "RUBBER_LAWS",
     "SECOND_FIBRE_LAWS",
     "TISSUE_LAWS",
+    "VISCOELASTIC_LAWS",
     "BCSpec",
     "ContactSpec",
     "ContactRotationSpec",
@@ -36,6 +37,7 @@ __all__ = [
     "Profile",
     "SolverSpec",
     "SteppingSpec",
+    "ViscoelasticSpec",
 ]
 
 # -- laws ------------------------------------------------------------------------------
@@ -65,6 +67,11 @@ LAWS = (*LAME_LAWS, "mooney_rivlin", "muscle", *RUBBER_LAWS, *TISSUE_LAWS)
 
 MIXED_LAWS = ("neo_hookean", "mooney_rivlin", "muscle", *RUBBER_LAWS, *TISSUE_LAWS)
 """Laws with an isochoric/volumetric split, usable with ``formulation = "mixed"``."""
+
+VISCOELASTIC_LAWS = ("neo_hookean", "mooney_rivlin", *RUBBER_LAWS, *TISSUE_LAWS)
+"""Laws that take a ``[material.viscoelastic]`` Prony series: those with an isochoric/volumetric split
+(:class:`~hyperfem.problem.SplitEnergy`, whose isochoric part relaxes), but ``muscle``, whose isochoric
+part holds the active fibre stress (a Prony series would relax the activation too)."""
 
 FIBRE_LAWS = ("muscle", *TISSUE_LAWS)
 """Laws that need the fibre directions of ``[fibres]``."""
@@ -139,6 +146,22 @@ class ProblemSpec:
 
 
 @dataclass(frozen=True)
+class ViscoelasticSpec:
+    """``[material.viscoelastic]``: the Prony series of the isochoric part.
+
+    Attributes:
+        g: Relative moduli :math:`g_i` (:class:`~hyperfem.materials.PronySeries` ``g``).
+        tau: Relaxation times :math:`\tau_i` in s, one per modulus.
+        time_scale: Seconds per unit of the run's time (load factor or s), or ``None``: 1
+            (:class:`~hyperfem.materials.Viscoelastic` ``time_scale``).
+    """
+
+    g: tuple[float, ...]
+    tau: tuple[float, ...]
+    time_scale: float | None = None
+
+
+@dataclass(frozen=True)
 class MaterialSpec:
     """One ``[[material]]``.
 
@@ -154,6 +177,7 @@ class MaterialSpec:
         volumetric: Volumetric law name, or ``None`` (the law's default).
         preset: ``"muscle"``/``"tendon"`` parameter set of the muscle law, or ``None``.
         activation: Muscle activation: a number, a :class:`Profile`, or ``None`` (passive).
+        viscoelastic: The Prony series of a viscoelastic material, or ``None`` (elastic).
     """
 
     key: str
@@ -164,6 +188,7 @@ class MaterialSpec:
     volumetric: str | None = None
     preset: str | None = None
     activation: float | Profile | None = None
+    viscoelastic: ViscoelasticSpec | None = None
 
 
 @dataclass(frozen=True)
