@@ -82,15 +82,28 @@ reference.
 the step's arc length is bisected :data:`BISECTIONS` times on the pivot
 count, which puts the state within :math:`2^{-5}` of the step past the
 bifurcation point. The critical mode :math:`\varphi` there (inverse
-iteration with the factorised tangent, orthogonal to the path tangent) is
-the predictor of the next step, :math:`\Delta u = \Delta\ell\,\varphi`,
-:math:`\Delta\lambda = 0`, with :data:`SWITCH_ARC` of the first increment;
-the arc length then regrows by :data:`CAP_GROWTH` per step, and until it
-has, a step whose amplitude along :math:`\varphi` (from the bifurcation
-point) does not grow is refused and cut back: near the bifurcation point
-the sphere of a step also meets the old branch, and the corrector may fall
-back onto it (measured on the arch: without the guard, two of three
-settings of these constants returned to the symmetric path).
+iteration with the factorised tangent from a start without symmetry,
+orthogonal to the tangent of the step's start: at the bisected state
+:math:`K^{-1}q` is itself dominated by the nearly singular mode) is the
+predictor of the next step, :math:`\Delta u = \Delta\ell\,\varphi`,
+:math:`\Delta\lambda = 0`, sized by the geometry: its largest nodal
+displacement is :data:`SWITCH_SIZE` of the body's size (the path's own
+scale can be far too small: an axially loaded column shortens by 1e-3 of
+its length at the Euler load). The arc length then regrows by
+:data:`CAP_GROWTH` per step; until it has, a step whose amplitude along
+:math:`\varphi` (from the bifurcation point) does not grow (the switching
+step: is not half its predictor's) is refused and cut back, since near the
+bifurcation point the sphere of a step also meets the old branch. On the
+new branch the predictor is the secant (the last increment). Measured: a
+perfect clamped-free column buckles and follows the elastica to a tip
+deflection of 0.3 L within 1e-4 (``tests/test_arc_length.py``). Not yet
+robust: the unstable antisymmetric branch of a shallow arch (rise 0.8,
+``hyperfem.cases.instability``) is left correctly but the path reverses
+along it after a few steps.
+
+A turn of the path tangent without a change of the inertia is not taken for
+a limit point (at a limit point an eigenvalue crosses zero): the direction
+is kept.
 
 **Scope.** Contact (external energies) is refused: the barrier's obstacles
 move with the time, which continuation leaves free; not yet available.
@@ -109,6 +122,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx.fem.petsc as fpetsc
+from dolfinx import fem
 
 from hyperfem.errors import ConvergenceError, ParameterError
 from hyperfem.solver.filters import NoAdmissibleStep
@@ -143,8 +157,13 @@ _REASONS = {
 }
 MAX_HALVINGS = 6
 """Halvings of a corrector step whose merit grew before the attempt fails (and the arc length is cut back)."""
-SWITCH_ARC = 0.5
-"""The arc length of a branch-switching step, as a fraction of the first increment (``ArcLength.increment``)."""
+_HASH = ((12.9898, 78.233, 37.719, 0.1), (39.346, 11.135, 83.155, 0.7), (73.156, 52.235, 9.151, 1.3))
+"""Frequencies and phases of the start vector of the inverse iteration (``_start_vector``)."""
+
+SWITCH_SIZE = 2e-3
+"""The largest nodal displacement of a branch-switching predictor along the critical mode, over the body's size
+(the diagonal of its bounding box): a step measured by the geometry, not by the path so far (the shortening of an
+axially loaded column per unit load is orders of magnitude below the lateral deflection of its buckled branch)."""
 CAP_GROWTH = 1.6
 """Growth per step of the arc length after a branch switch (slow: the new branch leaves the old one at a point)."""
 BISECTIONS = 5
@@ -165,7 +184,9 @@ class ArcLength:
         increment: First load-factor increment (sets the first arc length), > 0.
         min_increment: Smallest arc length, in load-factor units of the first
             step (default ``increment / 1024``); below it the run fails.
-        max_increment: Largest arc length, likewise (default ``4 increment``).
+        max_increment: Largest arc length, likewise (default :data:`MAX_FACTOR` ``increment``; the
+            load-factor unit of the start can be far below the arc a later branch needs: give more
+            for the post-buckling path of a column).
         psi: Load scaling :math:`\psi \ge 0` (1: spherical, load and
             displacement weighed alike at the start; 0: cylindrical).
         end: Stop once the load factor passes it (``None``: no such stop).
@@ -247,7 +268,7 @@ class ArcLength:
     @property
     def max_step(self) -> float:
         """Effective ``max_increment``."""
-        return self.max_increment if self.max_increment is not None else 4 * self.increment
+        return self.max_increment if self.max_increment is not None else MAX_FACTOR * self.increment
 
     def policy(self, start: float = 0.0) -> StepPolicy:
         """The policy of :func:`~hyperfem.solver.stepping.run_steps` for a continuation from the load factor ``start``.
@@ -276,6 +297,10 @@ class ArcLength:
             max_steps=self.max_attempts,
         )
 
+
+MAX_FACTOR = 4.0
+"""The default largest arc length, in first increments (at 16 the doubling arcs overshot: the sphere's path
+jumped to a negative pressure; a post-buckling path needs more, given by the user)."""
 
 INERTIA_LIMIT = 200_000
 """Unknowns up to which ``ArcLength(inertia=None)`` counts negative pivots (one extra factorisation per step)."""
@@ -369,6 +394,7 @@ class _Path:
     negative0: int = -1
     negative_prev: int = -1
     mode: PETSc.Vec | None = None  # the critical mode the next step follows (branch switching)
+    secant: tuple[PETSc.Vec, float] | None = None  # the last increment, the predictor just after a switch
     switched: bool = False
     attempts: int = 0
 
@@ -501,6 +527,15 @@ class _Continuation:
             dlam = 0.0
             path.mode.copy(self.y)
             self.y.scale(-path.arc)
+        elif path.secant is not None:
+            # Just after a switch: along the last increment (the tangent there is dominated by the nearly
+            # singular mode, and its sign can turn the path back along the new branch).
+            vec, last = path.secant
+            d = self.disp(vec)
+            scale = path.arc / math.sqrt(self.dot(d, d) + path.scale2 * last**2)
+            dlam = scale * last
+            vec.copy(self.y)
+            self.y.scale(-scale)
         else:
             t = self.disp(path.tangent)
             dlam = path.sign * path.arc / math.sqrt(self.dot(t, t) + path.scale2)
@@ -585,8 +620,16 @@ class _Continuation:
         return False, lam
 
     # -- at an accepted state --------------------------------------------------------------
-    def settle(self, lam: float, du: np.ndarray, dlam: float, path: _Path) -> tuple[bool, int]:
+    def settle(self, lam: float, du: np.ndarray, dlam: float, path: _Path, trust: bool = False) -> tuple[bool, int]:
         """At a converged state: the tangent for the next predictor, the direction of travel, the pivots.
+
+        Args:
+            lam: The load factor of the state.
+            du: The step's displacement increment (owned displacement entries).
+            dlam: The step's load increment.
+            path: The path (its tangent, direction and slope are updated).
+            trust: Take the tangent's direction even where the inertia did not change
+                (after a branch switch, the direction of the new branch).
 
         Returns:
             Whether the load turned within the step (a limit point), and the
@@ -601,31 +644,55 @@ class _Continuation:
         t = self.disp(path.tangent)
         # The next predictor continues this step's increment: the sign of (-t, 1)·(Δu, ψ²s²Δλ).
         sign = -1.0 if -self.dot(t, du) + path.scale2 * dlam < 0 else 1.0
+        negative = count_negative_pivots(self.A) if self.inertia else -1
         turned = sign != path.sign
+        if turned and negative >= 0 and negative == path.negative_prev and path.mode is None and not trust:
+            # At a limit point an eigenvalue of the tangent crosses zero; a turn of the tangent without a change
+            # of the inertia is not one: near a bifurcation point K^-1 q is dominated by the nearly singular
+            # mode and its sign is noise (it sent the arch back along its new branch). Keep the direction.
+            sign, turned = path.sign, False
         path.sign = sign
         path.slope = sign / math.sqrt(self.dot(t, t) + path.scale2)
-        return turned, count_negative_pivots(self.A) if self.inertia else -1
+        return turned, negative
 
-    def critical_mode(self, path: _Path, iterations: int = 10) -> PETSc.Vec:
+    def _start_vector(self, v: PETSc.Vec) -> None:
+        """A start for the inverse iteration with no symmetry: a hash of the reference coordinates.
+
+        A uniform start is symmetric, so on a symmetric body it holds almost
+        nothing of an antisymmetric mode; this one depends on the position
+        only, so it is the same on any number of ranks.
+        """
+        work = fem.Function(self.problem.u.function_space)
+
+        def noise(x: np.ndarray) -> np.ndarray:
+            rows = [np.sin(a * x[0] + b * x[1] + c * x[2] + d) * 43758.5453 for a, b, c, d in _HASH]
+            return np.array([r - np.floor(r) - 0.5 for r in rows[: self.problem.domain.gdim]])
+
+        target = work if self._disp is None else work.sub(0)
+        target.interpolate(noise)
+        work.x.scatter_forward()
+        work.x.petsc_vec.copy(v)
+
+    def critical_mode(self, primary: PETSc.Vec, iterations: int = 20) -> PETSc.Vec:
         r"""The eigenvector of the tangent's eigenvalue nearest zero, by inverse iteration with its factorisation.
 
         Called right after :meth:`settle` (the tangent at the state just past
-        the bifurcation is factorised): from a uniform start with zero
-        Dirichlet rows, ``iterations`` solves; the component along the path
+        the bifurcation is factorised): from a start without symmetry
+        (:meth:`_start_vector`) with zero Dirichlet rows, ``iterations`` solves; the component along the path
         tangent is removed, the displacement norm made 1, and the sign fixed
         so that the largest displacement entry is positive (the same on any
         number of ranks).
         """
         v = self.w.duplicate()
-        v.set(1.0)
+        self._start_vector(v)
         fpetsc.set_bc(v, self.problem.bcs, alpha=0.0)
         for _ in range(iterations):
             if not self.solve(v, self.work):
                 raise ConvergenceError("arc-length continuation: the inverse iteration for the critical mode failed")
             self.work.copy(v)
             v.scale(1.0 / _norm(v))
-        t, phi = self.disp(path.tangent), self.disp(v)
-        v.axpy(-self.dot(phi, t) / self.dot(t, t), path.tangent)
+        t, phi = self.disp(primary), self.disp(v)
+        v.axpy(-self.dot(phi, t) / self.dot(t, t), primary)
         phi = self.disp(v)
         v.scale(1.0 / math.sqrt(self.dot(phi, phi)))
         local = phi[np.argmax(np.abs(phi))] if phi.size else 0.0
@@ -682,6 +749,7 @@ class ArcLengthStage:
         self._time = float(problem.time)
         self._tangent = self._run.w.duplicate()
         self._tangent_before = self._run.w.duplicate()
+        self._secant = self._run.w.duplicate()
         self._before: tuple[np.ndarray, float, float] | None = None
         self._cap: float | None = None
         self._branch: tuple[np.ndarray, np.ndarray, float] | None = None  # mode, origin, amplitude after a switch
@@ -730,8 +798,8 @@ class ArcLengthStage:
     def advance(self, t: float, dt: float) -> SolveRecord:
         """One attempt of arc length ``|dt|`` (load-factor units) from the accepted state at ``t``."""
         path = self._path
-        # After a branch switch the arc length starts again from SWITCH_ARC of the first increment (a long step
-        # from near the bifurcation point may fall back onto the old branch) and doubles step by step.
+        # After a branch switch the arc length starts from the switching step's (SWITCH_SIZE) and regrows by
+        # CAP_GROWTH per step (a long step from near the bifurcation point may fall back onto the old branch).
         length = abs(dt) if self._cap is None else min(abs(dt), self._cap)
         path.arc = length * self.factor
         self._before = (self.problem.u.x.array.copy(), path.sign, path.slope)
@@ -743,6 +811,8 @@ class ArcLengthStage:
             # amplitude along the critical mode (from the bifurcation point) grows, or it fell back onto the old.
             mode, origin, amplitude = self._branch
             now = abs(self._run.dot(mode, self._run.disp(self._run.x) - origin))
+            if path.mode is not None:  # the switching step: half its predictor's amplitude at least
+                amplitude = 0.5 * path.arc
             if not now > amplitude:
                 record.converged, record.reason_name = False, "DIVERGED_FUNCTION_DOMAIN"
                 record.reason = _DIVERGED_DOMAIN
@@ -760,13 +830,15 @@ class ArcLengthStage:
         path, lam0 = self._path, self._time
         lam = lam0 + dlam
         slope0 = path.slope
-        turned, negative = self._run.settle(lam, du, dlam, path)
+        turned, negative = self._run.settle(lam, du, dlam, path, trust=self._branch is not None)
         switched = path.mode is not None
         if path.mode is not None:
             path.mode.destroy()
             path.mode = None
             turned = False  # leaving the primary path is not a turn of the load
-        bifurcation = negative >= 0 and path.negative_prev >= 0 and negative != path.negative_prev and not turned
+        # (the switching step leaves an unstable path: its change of the count is not a new bifurcation)
+        changed = negative >= 0 and path.negative_prev >= 0 and negative != path.negative_prev
+        bifurcation = changed and not turned and not switched
         self.events = {
             "arc_length": arc / self.factor,
             "negative_pivots": negative,
@@ -781,16 +853,42 @@ class ArcLengthStage:
             # switching step must reach the new branch, and not much farther).
             lam, dlam, negative = self._bisect(lam0, arc, path.negative_prev, (lam, dlam, du, negative))
             self.events.update(arc_length=self.events["arc_length"], negative_pivots=negative)
-            path.mode, path.switched = self._run.critical_mode(path), True
-            self._cap = SWITCH_ARC * self.settings.increment / CAP_GROWTH  # grown below
+            # Orthogonal to the tangent of the step's start: at the bisected state K^-1 q is polluted by the
+            # nearly singular mode itself (removing it there left the arch a symmetric "mode").
+            path.mode, path.switched = self._run.critical_mode(self._tangent_before), True
+            amplitude = SWITCH_SIZE * self._body_size() / self._largest_nodal(path.mode)
+            self._cap = amplitude / self.factor / CAP_GROWTH  # grown below: the switching step's arc is `amplitude`
             self._branch = (self._run.disp(path.mode), self._run.disp(self._run.x), 0.0)
         if self._cap is not None:
             self._cap = CAP_GROWTH * self._cap if self._cap < self.settings.max_step else None
             if self._cap is None:
                 self._branch = None
+        if path.switched and path.mode is None:
+            # On a branch found by switching, the secant predictor (the last increment): there the tangent
+            # K^-1 q can be dominated by a nearly singular mode whose sign is noise (the arch went back and forth).
+            assert self._before is not None  # set by advance
+            increment = self._secant.getArray()
+            n = increment.size
+            increment[:] = self.problem.u.x.array[:n] - self._before[0][:n]
+            path.secant = (self._secant, dlam)
         path.negative_prev = negative
         self._time, self.last_increment, self._pending = lam, dlam, None
         self.steps += 1
+
+    def _body_size(self) -> float:
+        """The diagonal of the body's bounding box (reference configuration; collective)."""
+        x = self.problem.domain.mesh.geometry.x
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        self.problem.domain.comm.Allreduce(x.min(axis=0, initial=np.inf), lo, op=MPI.MIN)
+        self.problem.domain.comm.Allreduce(x.max(axis=0, initial=-np.inf), hi, op=MPI.MAX)
+        return float(np.linalg.norm(hi - lo))
+
+    def _largest_nodal(self, v: PETSc.Vec) -> float:
+        """The largest nodal displacement of ``v`` (a vector of the unknown's layout; collective)."""
+        a = v.getArray(readonly=True)
+        full = np.zeros_like(self.problem.u.x.array)
+        full[: a.size] = a
+        return _max_nodal_distance(self.problem, self._dofs, full, np.zeros_like(full))
 
     def _bisect(
         self, lam0: float, arc: float, before: int, found: tuple[float, float, np.ndarray, int]
@@ -884,6 +982,7 @@ class ArcLengthStage:
         self._run.close()
         self._tangent.destroy()
         self._tangent_before.destroy()
+        self._secant.destroy()
         if getattr(self, "_path", None) is not None and self._path.mode is not None:
             self._path.mode.destroy()
             self._path.mode = None
