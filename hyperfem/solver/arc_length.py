@@ -130,6 +130,7 @@ from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.state import assign_state
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.solver.stepping import (
+    QuasiStaticStage,
     StepPolicy,
     StepRecord,
     _displacement_dofs,
@@ -719,7 +720,7 @@ def _hermite_extremum(lam0: float, lam1: float, slope0: float, slope1: float) ->
     return float(max(values) if slope0 > 0 else min(values))
 
 
-class ArcLengthStage:
+class ArcLengthStage(QuasiStaticStage):
     """Arc-length continuation as a stage of the one stepper (:func:`~hyperfem.solver.stepping.run_steps`).
 
     The step length the stepper asks for is the arc length in load-factor
@@ -742,11 +743,9 @@ class ArcLengthStage:
     kind = "arc-length"
 
     def __init__(self, problem: SolidProblem, solver: NewtonSolver, settings: ArcLength | None = None) -> None:
-        self.problem = problem
-        self.solver = solver
+        super().__init__(problem, solver)
         self.settings = ArcLength() if settings is None else settings
         self._run = _Continuation(solver, self.settings)
-        self._time = float(problem.time)
         self._tangent = self._run.w.duplicate()
         self._tangent_before = self._run.w.duplicate()
         self._secant = self._run.w.duplicate()
@@ -762,7 +761,6 @@ class ArcLengthStage:
         self.factor = math.sqrt(self._run.dot(t, t) + self._path.scale2)
         """Arc length per unit load increment at the start (the unit of the step lengths)."""
         self._pending: tuple[float, np.ndarray, float] | None = None
-        self._dofs = _displacement_dofs(problem)
         self.last_increment = 0.0
         """The load increment of the last committed step."""
         self.steps = 0
@@ -779,20 +777,9 @@ class ArcLengthStage:
         """What the last committed step found (at the start: the start's pivots): ``arc_length``,
         ``negative_pivots``, ``stable``, ``limit_point``, ``limit_load``, ``bifurcation``, ``switched``."""
 
-    @property
-    def time(self) -> float:
-        """The load factor of the accepted state."""
-        return self._time
-
-    def save(self) -> _Snapshot:
-        """Copy of the unknown and the load factor."""
-        return _Snapshot(self._time, self.problem.u.x.array.copy())
-
     def restore(self, state: _Snapshot) -> None:
-        """Back to ``state``."""
-        self.problem.u.x.array[:] = state.u
-        self.problem.set_time(state.time)
-        self._time = state.time
+        """Back to ``state`` (the unknown and the load factor)."""
+        super().restore(state)
         self._pending = None
 
     def advance(self, t: float, dt: float) -> SolveRecord:
@@ -932,10 +919,6 @@ class ArcLengthStage:
         finally:
             tangent.destroy()
         return lam, dlam, negative
-
-    def distance(self, state: _Snapshot) -> float:
-        """Largest nodal displacement difference from ``state``."""
-        return _max_nodal_distance(self.problem, self._dofs, self.problem.u.x.array, state.u)
 
     def measure(self) -> dict[str, Any]:
         """Row entries of the last committed step (a :class:`~hyperfem.simulation.Simulation` row)."""
