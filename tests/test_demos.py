@@ -251,3 +251,18 @@ def test_glued_bar_demo(shared_tmp, capsys):
     assert sum(result["stretches"]) == pytest.approx(2.5, rel=1e-12) and result["stretches"][0] < result["stretches"][1]
     if MPI.COMM_WORLD.rank == 0:
         assert "glued bar (E = 10 | 1, pulled 0.5)" in capsys.readouterr().out
+
+
+def test_buckling_demo(shared_tmp, capsys):
+    """Euler buckling (issue 22), one coarse mesh (1 x 1 x 10 boxes, P2): t_cr / Euler 1.0175, second mode 2.2850
+    (beam theory 2.25), the lowest tangent eigenvalue at t = 0.9, 0.95 extrapolating to zero at 1.0189."""
+    result = load_demo("buckling").main(["--divisions", "1", "--meshes", "1", "--output", str(shared_tmp)])
+    assert result["ranks"] == MPI.COMM_WORLD.size
+    assert result["critical_load_factor"] == pytest.approx(1.0175266, rel=1e-6)
+    assert result["second_load_factor"] == pytest.approx(2.2850045, rel=1e-6)
+    assert result["lowest_eigenvalue_path"]["zero"] == pytest.approx(1.0189, rel=1e-3)
+    MPI.COMM_WORLD.Barrier()  # rank 0 writes the summary and the picture
+    assert json.loads((shared_tmp / "buckling.json").read_text())["meshes"][0]["divisions"] == [1, 1, 10]
+    assert (shared_tmp / "buckling.png").exists() and (shared_tmp / "buckling_modes.bp").is_dir()
+    if MPI.COMM_WORLD.rank == 0:
+        assert "buckling: t_cr / Euler = 1.0175" in capsys.readouterr().out
