@@ -32,7 +32,12 @@ isochoric part :math:`\frac{\mu}{2}(\bar I_1 - 3)`, :math:`U = \frac{K}{2}\ln^2 
   steps; a time integration (:class:`~hyperfem.dynamics.IncrementalProblem`)
   moves it as a quasi-static ramp does.
 * 1 rank = 2 ranks, and a checkpoint mid-relaxation continues as the
-  uninterrupted run, on a gripped bar (inhomogeneous history).
+  uninterrupted run, on a gripped bar (inhomogeneous history), in the displacement
+  and the three-field formulation.
+* The three-field :math:`(u, p, \theta)` problem (P2/P1/P1): the homogeneous bar,
+  where neither formulation has a discretization error (the displacement one does not
+  lock in a homogeneous stretch), relaxes as the displacement formulation and the
+  NumPy recursion do at stretch 1.5, and as the linear closed form at small strain.
 """
 
 from __future__ import annotations
@@ -54,7 +59,7 @@ from hyperfem.errors import ParameterError
 from hyperfem.loading import Ramp, Steady
 from hyperfem.materials.neo_hookean import neo_hookean_isochoric
 from hyperfem.materials.viscoelastic import PronySeries, Viscoelastic
-from hyperfem.problem import SplitEnergy
+from hyperfem.problem import MixedHyperelasticProblem, SplitEnergy
 from hyperfem.simulation import Checkpoint, Output, Reactions, Simulation
 from hyperfem.simulation.reactions import ReactionForce
 from hyperfem.solver.linear import pc_setup_seconds
@@ -289,15 +294,19 @@ def test_creep_under_a_constant_traction():
 
 
 # -- (c) limits ---------------------------------------------------------------------------------------------------
-def _gripped(comm=MPI.COMM_WORLD, material=None, n=(4, 2, 2)):
-    """A bar 1 x 0.3 x 0.3 clamped at x = 0, its end pulled by 0.3 over [0, 1] and held (history not homogeneous)."""
+def _gripped(comm=MPI.COMM_WORLD, material=None, n=(4, 2, 2), formulation="displacement"):
+    """A bar 1 x 0.3 x 0.3 clamped at x = 0, its end pulled by 0.3 over [0, 1] and held (history not homogeneous).
+
+    ``formulation = "mixed"``: the three-field problem (P2/P1/P1) of the same material.
+    """
     mesh = dmesh.create_box(comm, [np.zeros(3), np.array([1.0, 0.3, 0.3])], list(n))
     domain = hf.Domain.from_locators(
         mesh, {"left": lambda x: np.isclose(x[0], 0.0), "right": lambda x: np.isclose(x[0], 1.0)}, source="bar"
     )
     bcs = [hf.Clamp("left"), hf.PrescribedDisplacement("right", [0.3, 0.0, 0.0], profile=Ramp(1.0))]
     material = _material() if material is None else material
-    problem = hf.HyperelasticProblem(domain, material, bcs=bcs)
+    kind = MixedHyperelasticProblem if formulation == "mixed" else hf.HyperelasticProblem
+    problem = kind(domain, material, bcs=bcs)
     return material, problem, hf.NewtonSolver(problem)
 
 
@@ -418,9 +427,9 @@ def _history_norms(problem) -> np.ndarray:
     return problem.domain.comm.allreduce(local, op=MPI.SUM)
 
 
-def _gripped_run(comm) -> tuple[np.ndarray, np.ndarray]:
+def _gripped_run(comm, formulation="displacement") -> tuple[np.ndarray, np.ndarray]:
     """The gripped bar ramped and held to 1.5: the grip's force after every step, and the state's measures."""
-    _, problem, solver = _gripped(comm)
+    _, problem, solver = _gripped(comm, formulation=formulation)
     reaction = ReactionForce(problem, "left")
     forces: list[np.ndarray] = []
     policy = _policy(1.5, 0.25, must_hit=(1.0,))
@@ -428,14 +437,15 @@ def _gripped_run(comm) -> tuple[np.ndarray, np.ndarray]:
     return np.array(forces), _history_norms(problem)
 
 
-def test_one_rank_equals_two_ranks():
+@pytest.mark.parametrize("formulation", ["displacement", "mixed"])
+def test_one_rank_equals_two_ranks(formulation):
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
     pc_setup_seconds()  # PETSc's log starts on every rank (collective), not in rank 0's first solve
-    one = _gripped_run(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = _gripped_run(MPI.COMM_SELF, formulation) if comm.rank == 0 else None
     P1, norms1 = comm.bcast(one, root=0)
-    P2, norms2 = _gripped_run(comm)
+    P2, norms2 = _gripped_run(comm, formulation)
     assert np.max(np.abs(P2 - P1)) < 1e-10 * np.max(np.abs(P1))  # measured 6.4e-13 (norms: 1.2e-15)
     assert norms2 == pytest.approx(norms1, rel=1e-10)
 
@@ -453,19 +463,20 @@ class _StopAfter(Output):
             raise _Interrupt(f"interrupted after step {step.step}")
 
 
-def _simulation(folder: Path, extra=()) -> Simulation:
-    _, problem, solver = _gripped()
+def _simulation(folder: Path, extra=(), formulation="displacement") -> Simulation:
+    _, problem, solver = _gripped(formulation=formulation)
     outputs = [*extra, Reactions(), Checkpoint(folder / "ckpt", every=3)]
     return Simulation(problem, solver, _policy(2.0, 0.25, must_hit=(1.0,)), outputs, name="relax")
 
 
-def test_restart_mid_relaxation_reproduces_the_uninterrupted_run(shared_tmp):
-    full = _simulation(shared_tmp / "full")
+@pytest.mark.parametrize("formulation", ["displacement", "mixed"])
+def test_restart_mid_relaxation_reproduces_the_uninterrupted_run(shared_tmp, formulation):
+    full = _simulation(shared_tmp / "full", formulation=formulation)
     reference = full.run()
-    cut = _simulation(shared_tmp / "cut", extra=[_StopAfter(5)])
+    cut = _simulation(shared_tmp / "cut", extra=[_StopAfter(5)], formulation=formulation)
     with pytest.raises(_Interrupt):
         cut.run()  # the checkpoint after step 3 (t = 0.75, mid-ramp); steps 4, 5 are lost
-    resumed = _simulation(shared_tmp / "cut")
+    resumed = _simulation(shared_tmp / "cut", formulation=formulation)
     summary = resumed.run(restart=shared_tmp / "cut" / "ckpt")
     assert summary["restarted_from"].endswith("step-000003") and summary["completed"]
     assert summary["steps"] == reference["steps"] == 8
@@ -474,6 +485,35 @@ def test_restart_mid_relaxation_reproduces_the_uninterrupted_run(shared_tmp):
         b = np.array([row[key] for row in reference["rows"]])
         assert np.max(np.abs(a - b)) <= 1e-10 * np.max(np.abs(b)), key  # measured 0 on 1 and on 2 ranks
     assert _history_norms(resumed.problem) == pytest.approx(_history_norms(full.problem), rel=1e-10)
+
+
+# -- (g) the three-field problem ----------------------------------------------------------------------------------
+def _mixed_bar(stretch: float, t_ramp: float):
+    """The bar of :func:`_bar` as a three-field problem, on 2 x 2 x 2 boxes (P2/P1 needs more than one box)."""
+    psi = _material()
+    problem = MixedHyperelasticProblem(unit_cube(2), psi, bcs=_rollers(stretch - 1.0, Ramp(t_ramp)))
+    return psi, problem, hf.NewtonSolver(problem)
+
+
+def test_mixed_formulation_relaxes_as_the_displacement_one():
+    """K/mu = 1e4, homogeneous: the (u, p, theta) problem is the recursion and the displacement problem at stretch
+    1.5, the linear closed form at 1e-3; the history moves once a step as in the displacement problem."""
+    t_ramp, end = 1.0, 1.5
+    psi, problem, solver = _mixed_bar(1.5, t_ramp)
+    t, P, records = _relax(problem, solver, _policy(end, 0.25, must_hit=(t_ramp,)))
+    same = _simo(np.concatenate([[0.0], t]), PRONY, stretch=lambda s: 1.0 + 0.5 * min(s / t_ramp, 1.0))[1:]
+    _, displacement, solver_u = _bar(1.5, t_ramp)
+    t_u, P_u, _ = _relax(displacement, solver_u, _policy(end, 0.25, must_hit=(t_ramp,)))
+    scale = np.max(np.abs(same))
+    assert np.array_equal(t, t_u) and P[-1] < 0.9 * P[3]  # relaxed in the hold
+    # measured 2.4e-7 (both): the hold steps end at |r| ~ 1e-7 (CONVERGED_FNORM_ABS of the three-field Newton)
+    assert np.max(np.abs(P - same)) < 1e-6 * scale and np.max(np.abs(P - P_u)) < 1e-6 * scale
+    assert sum(r.rejected for r in records) == 0 and psi.history.commits == len(t) - 1
+    eps = 1e-3
+    _, problem, solver = _mixed_bar(1.0 + eps, 0.5)
+    t, P, _ = _relax(problem, solver, _policy(2.5, 0.1, must_hit=(0.5,)))
+    closed = E0 * eps * np.minimum(t / 0.5, 1.0) * PRONY.ramp_and_hold(t, 0.5)
+    assert np.max(np.abs(P - closed)) / (E0 * eps) < 2.0 * eps  # measured 8.1e-4, as the displacement problem
 
 
 def test_a_checkpoint_leaves_the_stress_of_the_state_unchanged():

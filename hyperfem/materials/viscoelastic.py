@@ -65,13 +65,24 @@ time; or keep the load factor 0 → 1 and give the ramp's duration as
 ``time_scale``). Time must run forward (a quasi-static ramp *down* in time is
 refused; unload by a profile that falls while time goes on).
 
+**Three-field problem.** A :class:`Viscoelastic` is a material of
+:class:`~hyperfem.problem.MixedHyperelasticProblem` as its split law is: the
+isochoric part relaxes, the volumetric part is the problem's :math:`U(\theta)`,
+and each step makes
+
+.. math::
+    \Pi(u, p, \theta) = \int U(\theta) + \gamma\,\psi_\text{iso}(F) + \tfrac12 B_n : C
+        + p\,(J - \theta)\,dX
+
+stationary (:meth:`Viscoelastic.mixed_energy`); the history sits on the
+problem's volume rule and moves as above.
+
 Supported stages: quasi-static stepping (:func:`~hyperfem.solver.solve_quasistatic`,
 :class:`~hyperfem.simulation.Simulation`, with cut-backs, growth and step
 doubling) and implicit dynamics whose loads are evaluated at :math:`t_{n+1}`
 (backward Euler, Newmark). Not supported: generalized-α with
 :math:`\alpha_f \ne 0` and explicit dynamics (they call ``set_time`` at other
-than the solved times), and the three-field problem (it does not bind its
-energies' fields).
+than the solved times).
 
 Usage::
 
@@ -283,8 +294,9 @@ class Viscoelastic:
     r"""Callable energy :math:`\Pi(F) = U(J) + \gamma\,\psi_\text{iso}(F) + \tfrac12 B_n : F^TF` (module docstring).
 
     Pass it as the material of a :class:`~hyperfem.problem.HyperelasticProblem`
-    (one object per problem): the problem binds it to its :math:`F` and volume
-    rule and calls its :attr:`updaters` from ``set_time``.
+    or a :class:`~hyperfem.problem.MixedHyperelasticProblem` (one object per
+    problem): the problem binds it to its :math:`F` and volume rule and calls its
+    :attr:`updaters` from ``set_time``.
 
     Args:
         elastic: The split law :math:`U(J) + \psi_\text{iso}(F)` (any isochoric
@@ -446,6 +458,28 @@ class Viscoelastic:
         """
         Fv = ufl.variable(F)
         return ufl.diff(self(Fv), Fv)
+
+    def energy(self, F: Expr) -> Expr:
+        r"""The incremental potential :math:`\Pi(F)` (``self(F)``; as :meth:`SplitEnergy.energy
+        <hyperfem.problem.SplitEnergy.energy>` of the elastic law, with the history)."""
+        return self(F)
+
+    def mixed_energy(self, F: Expr, p: Expr, theta: Expr) -> Expr:
+        r"""Three-field density :math:`U(\theta) + \gamma\psi_\text{iso}(F) + \tfrac12 B_n : F^TF + p(\det F - \theta)`.
+
+        As :meth:`SplitEnergy.mixed_energy <hyperfem.problem.SplitEnergy.mixed_energy>` with the
+        isochoric part of the step: the isochoric stress relaxes, the volumetric
+        energy is that of the volume field :math:`\theta`. ``F`` must be the
+        deformation gradient the material is bound to (the problem binds it).
+        """
+        self.bind(F)
+        C = F.T * F
+        return (
+            self.elastic.volumetric_energy(theta)
+            + self._gamma * self.elastic.isochoric(F)
+            + 0.5 * ufl.inner(self.frozen_stress(), C)
+            + p * (ufl.det(F) - theta)
+        )
 
     def long_term_energy(self, F: Expr) -> Expr:
         r"""The relaxed law :math:`U(J) + g_\infty\,\psi_\text{iso}(F)` (the limit of a long hold)."""

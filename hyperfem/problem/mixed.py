@@ -54,6 +54,7 @@ import ufl
 from dolfinx import fem
 
 from hyperfem.errors import ParameterError
+from hyperfem.materials.viscoelastic import Viscoelastic
 from hyperfem.materials.volumetric import volumetric_law
 from hyperfem.mesh.domain import Domain
 from hyperfem.problem.boundary_conditions import BoundaryCondition, _CompiledDirichlet
@@ -140,8 +141,11 @@ class MixedHyperelasticProblem(EnergyProblem):
 
     Args:
         domain: Mesh with named groups.
-        material: A :class:`SplitEnergy`, or a mapping region name →
-            :class:`SplitEnergy` (every cell must belong to one region).
+        material: A :class:`SplitEnergy` or a :class:`~hyperfem.materials.Viscoelastic`
+            one (its isochoric part relaxes, :math:`U(\theta)` stays elastic; the problem
+            binds its history to :attr:`F` and its volume rule and moves it in
+            :meth:`set_time`), or a mapping region name → either (every cell must
+            belong to one region).
         bcs: Displacement Dirichlet conditions (by boundary name).
         loads: External loads (dead and follower), as for
             :class:`~hyperfem.problem.HyperelasticProblem`.
@@ -169,7 +173,7 @@ class MixedHyperelasticProblem(EnergyProblem):
     def __init__(
         self,
         domain: Domain,
-        material: SplitEnergy | Mapping[str, SplitEnergy],
+        material: SplitEnergy | Viscoelastic | Mapping[str, SplitEnergy | Viscoelastic],
         *,
         bcs: Sequence[BoundaryCondition] = (),
         loads: Sequence[Load] = (),
@@ -184,14 +188,23 @@ class MixedHyperelasticProblem(EnergyProblem):
                 f"MixedHyperelasticProblem: need degree >= 2 and 1 <= pressure_degree < degree, "
                 f"got {degree}/{pressure_degree}"
             )
-        regions: dict[str | None, SplitEnergy]
-        if isinstance(material, SplitEnergy):
+        regions: dict[str | None, SplitEnergy | Viscoelastic]
+        if isinstance(material, (SplitEnergy, Viscoelastic)):
             regions = {None: material}
-        elif not material:
-            raise ParameterError("MixedHyperelasticProblem: material mapping is empty")
+        elif not isinstance(material, Mapping) or not material:
+            what = "material mapping is empty" if isinstance(material, Mapping) else (
+                f"material must be a SplitEnergy, a Viscoelastic or a mapping region -> either, "
+                f"got {type(material).__name__}")
+            raise ParameterError(f"MixedHyperelasticProblem: {what}")
         else:
             regions = {name: m for name, m in material.items()}
             check_region_coverage(domain, list(material), "MixedHyperelasticProblem")
+        for name, m in regions.items():
+            if not isinstance(m, (SplitEnergy, Viscoelastic)):
+                raise ParameterError(
+                    f"MixedHyperelasticProblem: the material of {name!r} must be a SplitEnergy or a Viscoelastic, "
+                    f"got {type(m).__name__}"
+                )
         self.domain = domain
         mesh = domain.mesh
         gdim = domain.gdim
@@ -219,6 +232,11 @@ class MixedHyperelasticProblem(EnergyProblem):
         self.p = p
         self.theta = 1.0 + dilatation
         self.F = ufl.Identity(gdim) + ufl.grad(u)
+        updaters = list(updaters)
+        for m in regions.values():  # a viscoelastic history on the volume rule, moved by set_time
+            if isinstance(m, Viscoelastic):
+                m.bind(self.F, self.quadrature_degree)
+                updaters += [h for h in m.updaters if not any(h is other for other in updaters)]
 
         def dx(name: str | None) -> ufl.Measure:
             return domain.dx(name, metadata=md)
@@ -228,7 +246,7 @@ class MixedHyperelasticProblem(EnergyProblem):
         # What check_solution assembles (compiled on first use).
         self._check_integrands = (
             (J - self.theta) ** 2 * dx(None),
-            sum((m.isochoric(self.F) + m.volumetric_energy(J)) * dx(n) for n, m in regions.items()),
+            sum(m.energy(self.F) * dx(n) for n, m in regions.items()),
         )
         self._check_forms: tuple[fem.Form, ...] | None = None
         self.material = material
@@ -287,7 +305,8 @@ class MixedHyperelasticProblem(EnergyProblem):
             F = ufl.variable(ufl.Identity(d))
             i, j, p, q = ufl.indices(4)
             moduli: dict[str | None, float] = {}
-            for name, m in self._regions.items():
+            for name, material in self._regions.items():
+                m = material.elastic if isinstance(material, Viscoelastic) else material  # its instantaneous law
                 if m.shear_modulus is not None:
                     moduli[name] = float(m.shear_modulus)
                     continue
@@ -389,7 +408,7 @@ def _deviatoric_basis(d: int) -> list[np.ndarray]:
 
 def solid_problem(
     domain: Domain,
-    material: SplitEnergy | Mapping[str, SplitEnergy],
+    material: SplitEnergy | Viscoelastic | Mapping[str, SplitEnergy | Viscoelastic],
     *,
     formulation: str = "mixed",
     degree: int | None = None,
@@ -399,7 +418,7 @@ def solid_problem(
 
     Args:
         domain: Mesh with named groups.
-        material: Split energy (or mapping region → split energy).
+        material: Split energy or a viscoelastic one (or mapping region → either).
         formulation: ``"mixed"`` (Taylor–Hood u–p) or ``"displacement"``.
         degree: Displacement degree (default 2 for mixed, 1 for displacement).
         **kwargs: Passed on (``bcs``, ``loads``, ``quadrature_degree``, ``updaters``...).
@@ -407,6 +426,11 @@ def solid_problem(
     if formulation == "mixed":
         return MixedHyperelasticProblem(domain, material, degree=degree or 2, **kwargs)
     if formulation == "displacement":
-        psi = material.energy if isinstance(material, SplitEnergy) else {k: m.energy for k, m in material.items()}
+
+        def energy(m: SplitEnergy | Viscoelastic) -> Callable[[Expr], Expr]:
+            return m if isinstance(m, Viscoelastic) else m.energy  # a Viscoelastic itself: its history is bound
+
+        psi = energy(material) if isinstance(material, (SplitEnergy, Viscoelastic)) else {
+            k: energy(m) for k, m in material.items()}
         return HyperelasticProblem(domain, psi, degree=degree or 1, **kwargs)
     raise ParameterError(f"unknown formulation {formulation!r} (use 'mixed' or 'displacement')")
