@@ -170,11 +170,15 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
             raise CaseFileError(
                 "stepping.lumped_mass: the lumped mass needs degree-1 displacements (problem.degree = 1)"
             )
+        mesh = sections.check_mesh_table(top["mesh"], source)
+        solver = sections.check_solver(top.get("solver", {}))
+        output_spec = sections.check_output(top.get("output", {}), name, output, stepping, bcs, fibres, materials)
+        sections.check_viscoelastic_output(materials, mixed, output_spec)
         return Case(
             source=source,
             name=name,
             description=top.get("description", ""),
-            mesh=sections.check_mesh_table(top["mesh"], source),
+            mesh=mesh,
             problem=problem,
             materials=materials,
             fibres=fibres,
@@ -183,8 +187,8 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
             loads=loads,
             contacts=contacts,
             stepping=stepping,
-            solver=sections.check_solver(top.get("solver", {})),
-            output=sections.check_output(top.get("output", {}), name, output, stepping, bcs, fibres, materials),
+            solver=solver,
+            output=output_spec,
         )
     except CaseFileError as exc:
         if exc.source is not None:

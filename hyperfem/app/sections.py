@@ -86,6 +86,7 @@ __all__ = [
     "check_profile",
     "check_solver",
     "check_stepping",
+    "check_viscoelastic_output",
     "check_viscoelastic_use",
 ]
 
@@ -918,8 +919,6 @@ def _material(index: int, table: Mapping, mixed: bool, has_fibres: bool, has_sec
     values = check_table(table, {**_COMMON_MATERIAL, **own}, where, what=f"a material with law {law!r}")
     viscoelastic = _viscoelastic(values["viscoelastic"], join(where, "viscoelastic")) if "viscoelastic" in values \
         else None
-    if mixed and viscoelastic is not None:
-        raise CaseFileError(f"{where}.viscoelastic: not yet with formulation = \"mixed\"; use \"displacement\"")
     if mixed and law not in MIXED_LAWS:
         raise CaseFileError(
             f"{where}.law: {law!r} has no isochoric/volumetric split for formulation = \"mixed\" "
@@ -1008,6 +1007,24 @@ def check_viscoelastic_use(materials: Sequence[MaterialSpec], stepping: Stepping
                 f"stepping.end: a viscoelastic material ({m.key}) needs time to run forward, end > 0, "
                 f"got {stepping.end!r}"
             )
+
+
+def check_viscoelastic_output(materials: Sequence[MaterialSpec], mixed: bool, output: OutputSpec) -> None:
+    """Stress fields of the three-field problem need SplitEnergy materials
+    (:func:`hyperfem.simulation.measures.cauchy_stress`): refused for a viscoelastic one."""
+    visco = [m for m in materials if m.viscoelastic is not None]
+    if not (mixed and visco):
+        return
+    asked = [(f"output.fields: {f}", f) for f in output.fields if f in ("cauchy_stress", "von_mises")]
+    if output.render is not None and output.render.scalars in ("cauchy_stress", "von_mises"):
+        asked.append((f"output.render.scalars: {output.render.scalars}", output.render.scalars))
+    if asked:
+        where, _ = asked[0]
+        raise CaseFileError(
+            f"{where} is not written for a viscoelastic material ({visco[0].key}) with formulation = \"mixed\" "
+            "yet (the stress fields of the three-field problem take SplitEnergy materials); leave it out or use "
+            "formulation = \"displacement\""
+        )
 
 
 def check_materials(
