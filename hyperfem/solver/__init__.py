@@ -64,6 +64,7 @@ __all__ += ["StepFilter", "exact_filter_applies"]
 from hyperfem.solver.projected import ProjectedTangent, projected_newton_solver  # noqa: E402
 
 __all__ += ["ProjectedTangent", "projected_newton_solver"]
-from hyperfem.solver.arc_length import ArcLength, ArcLengthRecord, continue_arc_length, count_negative_pivots  # noqa: E402
+from hyperfem.solver.arc_length import ArcLength, ArcLengthRecord, ArcLengthStage, continue_arc_length  # noqa: E402
+from hyperfem.solver.inertia import negative_pivots  # noqa: E402
 
-__all__ += ["ArcLength", "ArcLengthRecord", "continue_arc_length", "count_negative_pivots"]
+__all__ += ["ArcLength", "ArcLengthRecord", "ArcLengthStage", "continue_arc_length", "negative_pivots"]

@@ -126,6 +126,7 @@ from dolfinx import fem
 
 from hyperfem.errors import ConvergenceError, ParameterError
 from hyperfem.solver.filters import NoAdmissibleStep
+from hyperfem.solver.inertia import negative_pivots
 from hyperfem.solver.newton import NewtonSolver, SolveRecord
 from hyperfem.solver.state import assign_state
 from hyperfem.problem.protocol import SolidProblem
@@ -140,7 +141,7 @@ from hyperfem.solver.stepping import (
 )
 from hyperfem.validation import check_count, check_finite_scalar, check_positive
 
-__all__ = ["ArcLength", "ArcLengthRecord", "ArcLengthStage", "continue_arc_length", "count_negative_pivots"]
+__all__ = ["ArcLength", "ArcLengthRecord", "ArcLengthStage", "continue_arc_length"]
 
 _CONVERGED = int(PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS)
 _DIVERGED_ITS = int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)
@@ -344,42 +345,6 @@ class ArcLengthRecord(StepRecord):
             switched=self.switched,
         )
         return out
-
-
-# -- inertia ------------------------------------------------------------------------------
-def count_negative_pivots(A: PETSc.Mat) -> int:
-    """Negative pivots of an :math:`LDL^T` factorisation of (the symmetric part of) ``A`` (MUMPS; collective).
-
-    By Sylvester's law of inertia, the number of negative eigenvalues of the
-    symmetric matrix. Dirichlet rows (identity rows) count as positive.
-
-    Raises:
-        ParameterError: MUMPS is not available or the factorisation failed.
-    """
-    comm = A.getComm()
-    B = A.copy()
-    B.setOption(PETSc.Mat.Option.SYMMETRIC, True)  # type: ignore[arg-type]  # petsc4py stubs: the enum is an int
-    B.setOption(PETSc.Mat.Option.SPD, False)  # type: ignore[arg-type]
-    ksp = PETSc.KSP().create(comm)
-    try:
-        ksp.setOperators(B)
-        ksp.setType("preonly")
-        pc = ksp.getPC()
-        pc.setType("cholesky")
-        pc.setFactorSolverType("mumps")
-        pc.setFactorSetUpSolverType()
-        factor = pc.getFactorMatrix()
-        factor.setMumpsIcntl(24, 1)  # null-pivot detection: a singular tangent still factorises
-        factor.setMumpsIcntl(13, 1)  # the root node factorised in serial: INFOG(12) counts every pivot
-        pc.setUp()
-        return int(factor.getMumpsInfog(12))
-    except PETSc.Error:
-        raise ParameterError(
-            "count_negative_pivots: the LDL^T factorisation (MUMPS) of the tangent failed"
-        ) from None
-    finally:
-        ksp.destroy()
-        B.destroy()
 
 
 # -- the continuation ---------------------------------------------------------------------
@@ -645,7 +610,7 @@ class _Continuation:
         t = self.disp(path.tangent)
         # The next predictor continues this step's increment: the sign of (-t, 1)·(Δu, ψ²s²Δλ).
         sign = -1.0 if -self.dot(t, du) + path.scale2 * dlam < 0 else 1.0
-        negative = count_negative_pivots(self.A) if self.inertia else -1
+        negative = negative_pivots(self.A) if self.inertia else -1
         turned = sign != path.sign
         if turned and negative >= 0 and negative == path.negative_prev and path.mode is None and not trust:
             # At a limit point an eigenvalue of the tangent crosses zero; a turn of the tangent without a change
@@ -1053,5 +1018,5 @@ def _start(run: _Continuation, lam: float, tangent: PETSc.Vec) -> _Path:
     path = _Path(arc=0.0, scale2=scale2, tangent=tangent, sign=float(s.direction),
                  slope=s.direction / math.sqrt(tt + scale2))
     if run.inertia:
-        path.negative0 = path.negative_prev = count_negative_pivots(run.A)
+        path.negative0 = path.negative_prev = negative_pivots(run.A)
     return path

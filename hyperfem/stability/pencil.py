@@ -55,33 +55,12 @@ from dolfinx import fem
 from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem, StateHookedProblem
 from hyperfem.solver.constraints import unconstrained_rigid_modes
+from hyperfem.solver.inertia import negative_pivots
 
 __all__ = ["METRICS", "TangentPencil", "negative_pivots"]
 
 METRICS = ("mass", "euclidean")
 """Names of the metrics :math:`B` (see the module docstring)."""
-
-
-def negative_pivots(A: PETSc.Mat) -> int:
-    r"""Number of negative eigenvalues of the symmetric matrix ``A`` (its inertia, collective).
-
-    Counted as the negative pivots of a MUMPS :math:`LDL^T` factorisation
-    (``INFOG(12)``; Sylvester's law of inertia), with ``ICNTL(13) = 1`` so that
-    the count is global on several ranks. Set up without PETSc's options
-    database.
-    """
-    pc = PETSc.PC().create(A.getComm())
-    try:
-        pc.setOperators(A, A)
-        pc.setType(PETSc.PC.Type.CHOLESKY)
-        pc.setFactorSolverType("mumps")
-        pc.setFactorSetUpSolverType()
-        factor = pc.getFactorMatrix()
-        factor.setMumpsIcntl(13, 1)
-        pc.setUp()
-        return int(factor.getMumpsInfog(12))
-    finally:
-        pc.destroy()
 
 
 class TangentPencil:
