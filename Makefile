@@ -87,6 +87,7 @@ demos: bootstrap
 	$(PY) demos/fit_treloar.py
 	$(PY) demos/relaxation.py
 	$(PY) demos/inflation.py
+	$(PY) demos/buckling.py
 
 test: bootstrap
 	$(PY) -m pytest $(PYTEST_ARGS)
