@@ -133,6 +133,7 @@ from hyperfem.simulation import (
     Recorder,
     Render,
     Simulation,
+    Stability,
 )
 from hyperfem.solver import ArcLength, LoadStepping, NewtonSolver
 
@@ -746,6 +747,8 @@ def _outputs(case: Case, materials: _Materials) -> Statement:
     items: list[tuple[str, object]] = []
     if o.probes:
         items.append(("output.probes", Call.of(Probe, o.probes)))
+    if o.stability:
+        items.append(("output.stability", Call.of(Stability, o.stability)))
     if o.reactions is None:
         items.append(("output.reactions", Call.of(Reactions)))
     elif o.reactions:

@@ -49,6 +49,9 @@ def progress_line(row: dict) -> str:
         parts.append(f"min J {row['min_J']:.4g}")
     if row.get("negative_pivots", -1) >= 0:  # a continuation: the stability of the state, what the step passed
         parts.append(f"neg. pivots {row['negative_pivots']}" + ("" if row.get("stable", True) else " (unstable)"))
+    if "negative_eigenvalues" in row:  # the Stability output: the lowest eigenvalue of the tangent
+        lowest = row["lowest_eigenvalues"][0] if row.get("lowest_eigenvalues") else float("nan")
+        parts.append(f"mu_min {lowest:.4g}" + ("" if row.get("stable_state", True) else " UNSTABLE"))
     if row.get("limit_point"):
         parts.append(f"LIMIT POINT at load factor {row['limit_load']:.6g}")
     if row.get("bifurcation"):

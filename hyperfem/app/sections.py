@@ -775,6 +775,10 @@ OUTPUT = {
                             help="a checkpoint every this many steps, and at the end (Checkpoint every)"),
     "checkpoint_keep": Key("integer", minimum=1, default=2, help="checkpoints kept (Checkpoint keep)"),
     "progress": Key("boolean", default=True, help="a line per step on the terminal (Progress)"),
+    "stability": Key("integer", minimum=0, default=0, example=3,
+                     help="the lowest eigenvalues of the tangent at every state, this many (Stability: SLEPc; "
+                     "columns lowest_eigenvalues, negative_eigenvalues, stable_state; a warning for an unstable "
+                     "state); 0: off"),
     "render": Key("any", shape="render", default=False,
                   help="true, or a table of Render options (a PNG of the deformed body; needs pyvista)"),
 }
@@ -1346,6 +1350,7 @@ def check_output(
         checkpoint_every=every,
         checkpoint_keep=values.get("checkpoint_keep"),
         progress=values.get("progress", True),
+        stability=values.get("stability", 0),
         render=render,
     )
 

@@ -415,6 +415,7 @@ class OutputSpec:
         checkpoint_keep: Checkpoints kept.
         progress: Print a line per step (rank 0).
         render: Picture(s) of the deformed body (:class:`~hyperfem.simulation.render.Render`), or ``None``.
+        stability: Lowest eigenvalues of the tangent per state (:class:`~hyperfem.simulation.Stability`); 0: off.
     """
 
     directory: Path
@@ -430,6 +431,7 @@ class OutputSpec:
     checkpoint_keep: int | None = None
     progress: bool = True
     render: RenderSpec | None = None
+    stability: int = 0
 
 
 @dataclass(frozen=True)

@@ -56,6 +56,7 @@ from hyperfem.simulation.fields import FieldOutput, cell_field_expressions, von_
 from hyperfem.simulation.render import Render, Surface, boundary_surface, render_png
 from hyperfem.simulation.checkpoint import Checkpoint, CheckpointError, StepperState
 from hyperfem.simulation.runner import Simulation, StateFunctions
+from hyperfem.simulation.stability import Stability, UnstableStateWarning
 
 __all__ = [
     "VTX",
@@ -83,9 +84,11 @@ __all__ = [
     "Recorder",
     "Render",
     "Simulation",
+    "Stability",
     "StateFunctions",
     "StepperState",
     "Surface",
+    "UnstableStateWarning",
     "boundary_surface",
     "cauchy_stress",
     "cell_field_expressions",
