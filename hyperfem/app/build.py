@@ -37,6 +37,7 @@ from hyperfem.mesh.domain import Domain
 from hyperfem.mesh.orientation import domain_orientation
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.simulation.outputs import Output
+from hyperfem.stability.run import BucklingRun
 from hyperfem.simulation.runner import Simulation
 from hyperfem.solver.newton import NewtonSolver
 
@@ -54,8 +55,8 @@ class Built:
         problem: The problem the solver solves (for a dynamic run: its time step).
         solver: The Newton solver.
         stepping: The load or time stepping.
-        outputs: The observers of the run.
-        simulation: The run.
+        outputs: The observers of the run (none for a buckling analysis).
+        simulation: The run (a :class:`~hyperfem.stability.run.BucklingRun` for ``type = "buckling"``).
         variables: Every variable of the script, the above included (``materials``/``material``,
             ``params``, ``bcs``, ``loads``, ``fibres``, ``base``, ...).
     """
@@ -67,7 +68,7 @@ class Built:
     solver: NewtonSolver
     stepping: Any
     outputs: list[Output]
-    simulation: Simulation
+    simulation: Simulation | BucklingRun
     variables: dict[str, Any] = field(default_factory=dict)
 
 
@@ -210,12 +211,13 @@ def build(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, *, echo: bool = False) ->
             check_mesh(case, value, echo=echo)
             if echo:
                 cells = value.mesh.topology.index_map(value.tdim).size_global
-                kind = "dynamic" if case.dynamic else "quasi-static"
+                kind = case.stepping.type
                 say(f"{case.name} ({case.source}): {kind}, {comm.size} rank(s); mesh {value.source}: {cells} cells",
                     comm)
     names = ("domain", "problem", "solver", "stepping", "outputs", "simulation")
     material = variables["materials"] if "materials" in variables else variables["material"]
-    return Built(case, material=material, **{n: variables[n] for n in names}, variables=variables)
+    found = {n: variables.get(n, []) if n == "outputs" else variables[n] for n in names}  # a buckling run has none
+    return Built(case, material=material, **found, variables=variables)
 
 
 def build_domain(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:

@@ -514,6 +514,8 @@ def _render_picture(args: argparse.Namespace) -> None:
     from hyperfem.app.spec import RenderSpec
     from hyperfem.io.checkpoint import resolve_checkpoint
     from hyperfem.simulation.checkpoint import load_checkpoint
+    from hyperfem.app.casefile import CaseFileError
+    from hyperfem.simulation import Simulation
     from hyperfem.simulation.render import Render, require_pyvista
 
     case = load_case(args.case, args.overrides)
@@ -533,6 +535,8 @@ def _render_picture(args: argparse.Namespace) -> None:
     require_pyvista(MPI.COMM_WORLD)
     built = build(case, MPI.COMM_WORLD)
     simulation = built.simulation
+    if not isinstance(simulation, Simulation):
+        raise CaseFileError("render: a buckling analysis has no checkpoints to draw (its modes are in NAME_modes.bp)")
     meta = load_checkpoint(simulation, source)
     (render,) = [o for o in built.outputs if isinstance(o, Render)]
     target = args.output if args.output is not None else case.output.directory / f"{case.name}.png"

@@ -136,6 +136,7 @@ from hyperfem.simulation import (
     Stability,
 )
 from hyperfem.solver import ArcLength, LoadStepping, NewtonSolver
+from hyperfem.stability.run import Buckling, BucklingRun
 
 __all__ = ["Statement", "checkpoint_folder", "model_hash", "must_hit_times", "plan"]
 
@@ -709,6 +710,8 @@ def _stepping(case: Case) -> Statement:
         return Statement("stepping", "stepping", Call.of(dyn.TimeStepping, **options))
     if st.continuation:
         return Statement("stepping", "stepping", Call.of(ArcLength, **st.options))
+    if st.buckling:
+        return Statement("stepping", "stepping", Call.of(Buckling, **st.options))
     stepping = Call.of(LoadStepping, **st.options)
     if st.end is not None:
         stepping = Call.of(Attr(stepping, "policy"), end=st.end)
@@ -799,6 +802,9 @@ def _render(case: Case, materials: _Materials, render: RenderSpec) -> Call:
 
 
 def _simulation(case: Case) -> Statement:
+    if case.stepping.buckling:  # no steps and no outputs: the critical load factors and the modes, written
+        run = Call.of(BucklingRun, Ref("problem"), Ref("solver"), Ref("stepping"), Ref("out"), name=case.name)
+        return Statement("simulation", "simulation", run, comment="a linearised buckling analysis")
     kwargs: dict[str, object] = {
         "name": case.name,
         "info": {"case": str(case.source)},
@@ -834,6 +840,6 @@ def plan(case: Case) -> list[Statement]:
         *_contacts(case),
         *_solver(case),
         _stepping(case),
-        _outputs(case, materials),
+        *([] if case.stepping.buckling else [_outputs(case, materials)]),
         _simulation(case),
     ]

@@ -655,9 +655,10 @@ PROFILES = {
 }
 """Keys of a profile table ``{type = ..., ...}`` besides :data:`PROFILE_TYPE`, per type."""
 
-_STEPPING_TYPE = Key("string", choices=("quasi-static", "dynamic", "arc_length"), default="quasi-static",
+_STEPPING_TYPE = Key("string", choices=("quasi-static", "dynamic", "arc_length", "buckling"), default="quasi-static",
                      help="quasi-static: a load ramp (hf.LoadStepping); dynamic: a time integration (dyn.TimeStepping "
-                     "and a scheme); arc_length: continuation through limit points (hf.solver.ArcLength)")
+                     "and a scheme); arc_length: continuation through limit points (hf.solver.ArcLength); buckling: "
+                     "linearised buckling, critical load factors and modes (hyperfem.stability.Buckling)")
 QUASI_STATIC = {
     "type": _STEPPING_TYPE,
     "end": Key("number", default=1.0, help="the final load factor (LoadStepping.policy(end))"),
@@ -694,6 +695,15 @@ ARC_LENGTH = {
     "switch_branch": Key("boolean", default=False,
                          help="at the first bifurcation, leave the path along the critical mode (branch switching)"),
     "solve_initial": Key("boolean", default=False, help="solve at load factor 0 first (Simulation solve_initial)"),
+}
+BUCKLING = {
+    "type": _STEPPING_TYPE,
+    "n": Key("integer", minimum=1, default=2, help="critical load factors (and modes) wanted"),
+    "increment": Key("number", default=1.0,
+                     help="the load increment of the second tangent (t_cr = reference + mu increment)"),
+    "prestress": Key("string", choices=("linear", "nonlinear"), default="linear",
+                     help="the state at reference + increment: one linear solve (*BUCKLE) or a Newton solve"),
+    "reference": Key("number", default=0.0, help="the load factor of the reference state (a ramp reaches it)"),
 }
 DYNAMIC = {
     "type": _STEPPING_TYPE,
@@ -1203,7 +1213,7 @@ def check_stepping(table: Mapping) -> SteppingSpec:
     """``[stepping]``: a quasi-static ramp (default) or a time integration (``type = "dynamic"``)."""
     kind = check_value(table.get("type", "quasi-static"), QUASI_STATIC["type"], "stepping.type")
     kinds = {"quasi-static": (QUASI_STATIC, "load ramp"), "dynamic": (DYNAMIC, "time integration"),
-             "arc_length": (ARC_LENGTH, "continuation")}
+             "arc_length": (ARC_LENGTH, "continuation"), "buckling": (BUCKLING, "buckling analysis")}
     own = kinds[kind][0]
     for key in table:
         if key in own:
@@ -1214,6 +1224,11 @@ def check_stepping(table: Mapping) -> SteppingSpec:
                     f"stepping.{key}: a key of {other_kind} stepping, not of {kind} stepping "
                     f"(set type = \"{other_kind}\" for a {what})"
                 )
+    if kind == "buckling":
+        values = check_table(table, BUCKLING, "stepping", what="a buckling analysis")
+        if values.get("increment", 1.0) == 0.0:
+            raise CaseFileError("stepping.increment: must not be 0")
+        return SteppingSpec(type=kind, options={k: v for k, v in values.items() if k != "type"})
     if kind == "arc_length":
         values = check_table(table, ARC_LENGTH, "stepping", what="arc-length stepping")
         if "min_load" in values and "end" in values and not values["min_load"] < values["end"]:
@@ -1296,11 +1311,10 @@ def check_output(
     values = check_table(table, OUTPUT, "output")
     if "times" in values and "every" in values:
         raise CaseFileError("output.every: give either times or every, not both")
-    if stepping.continuation and ("times" in values or "every" in values):
+    if stepping.type in ("arc_length", "buckling") and ("times" in values or "every" in values):
         key = "times" if "times" in values else "every"
-        raise CaseFileError(
-            f"output.{key}: not with arc_length stepping (the load factor goes up and down; every step is written)"
-        )
+        why = "the load factor goes up and down; every step is written" if stepping.continuation else "no steps"
+        raise CaseFileError(f"output.{key}: not with {stepping.type} stepping ({why})")
     end = float(stepping.options["t_end"]) if stepping.dynamic else (stepping.end if stepping.end is not None else 1.0)
     times = values.get("times")
     if times is not None:

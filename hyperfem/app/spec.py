@@ -331,7 +331,7 @@ class SteppingSpec:
     """``[stepping]``.
 
     Attributes:
-        type: ``"quasi-static"``, ``"dynamic"`` or ``"arc_length"``.
+        type: ``"quasi-static"``, ``"dynamic"``, ``"arc_length"`` or ``"buckling"``.
         options: The given keyword arguments of :class:`~hyperfem.LoadStepping`,
             :class:`~hyperfem.dynamics.TimeStepping` or :class:`~hyperfem.solver.ArcLength`
             (case names translated).
@@ -363,6 +363,11 @@ class SteppingSpec:
     def continuation(self) -> bool:
         """Whether the run is an arc-length continuation."""
         return self.type == "arc_length"
+
+    @property
+    def buckling(self) -> bool:
+        """Whether the run is a linearised buckling analysis."""
+        return self.type == "buckling"
 
 
 @dataclass(frozen=True)

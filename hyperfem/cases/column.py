@@ -25,17 +25,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
 from hyperfem.errors import ParameterError
+from hyperfem.io.results import ensure_output_dir
 from hyperfem.materials.parameters import LameParameters
 from hyperfem.mesh.domain import Domain
+from hyperfem.mesh.gmsh_session import gmsh_session
 from hyperfem.validation import check_count, check_positive
 
-__all__ = ["COLUMN_GROUPS", "ColumnSpec", "column_domain"]
+__all__ = ["COLUMN_GROUPS", "ColumnSpec", "column_domain", "write_column_mesh"]
 
 COLUMN_GROUPS = ("bottom", "top")
 """The named boundaries of :func:`column_domain`."""
@@ -110,3 +113,37 @@ def column_domain(
         {"bottom": lambda x: np.isclose(x[2], 0.0), "top": lambda x: np.isclose(x[2], L)},
         source=f"column{tuple(divisions)}",
     )
+
+
+def write_column_mesh(path: str | Path, spec: ColumnSpec | None = None, h: float = 1.0) -> Path:
+    """Write the column as a gmsh ``.msh`` file (tetrahedra of size ``h``) for case files. Serial; call on one rank.
+
+    Physical groups: volume ``column``; faces ``bottom`` (z = 0), ``top`` (z = L), ``sides``.
+
+    Raises:
+        ParameterError: ``h`` not a number > 0.
+    """
+    check_positive("h", h, "write_column_mesh")
+    spec = ColumnSpec() if spec is None else spec
+    path = Path(path)
+    ensure_output_dir(path.parent, MPI.COMM_SELF)
+    with gmsh_session() as gmsh:
+        gmsh.model.add("column")
+        box = gmsh.model.occ.addBox(0.0, 0.0, 0.0, spec.width, spec.depth, spec.length)
+        gmsh.model.occ.synchronize()
+        faces: dict[str, list[int]] = {"bottom": [], "top": [], "sides": []}
+        for _, tag in gmsh.model.getBoundary([(3, box)], oriented=False):
+            z = gmsh.model.occ.getCenterOfMass(2, tag)[2]
+            key = "bottom" if abs(z) < 1e-9 else "top" if abs(z - spec.length) < 1e-9 else "sides"
+            faces[key].append(tag)
+        gmsh.model.addPhysicalGroup(3, [box], 1, name="column")
+        for i, (name, tags) in enumerate(faces.items(), start=1):
+            gmsh.model.addPhysicalGroup(2, tags, i, name=name)
+        gmsh.model.mesh.setSize(gmsh.model.getBoundary([(3, box)], recursive=True), h)
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay: deterministic
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.model.mesh.generate(3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.write(str(path))
+    return path

@@ -577,7 +577,9 @@ class Derived(Output):
 
 def format_summary(summary: dict) -> str:
     """Short human-readable form of :meth:`Simulation.summary <hyperfem.simulation.Simulation.summary>`."""
-    kinds = {"quasi-static": "load steps", "arc-length": "continuation steps"}
+    kinds = {
+        "quasi-static": "load steps", "arc-length": "continuation steps", "buckling": "load steps to the reference"
+    }
     steps = kinds.get(summary.get("stage", ""), "time steps")
     lines = [
         f"{summary['name']}: {summary['dofs']} dofs, {summary['cells']} cells, {summary['ranks']} rank(s)",
@@ -587,6 +589,11 @@ def format_summary(summary: dict) -> str:
         limits = ", ".join(f"{v:.6g}" for v in summary.get("limit_points", [])) or "none"
         bifurcations = ", ".join(f"{v:.6g}" for v in summary.get("bifurcations", [])) or "none"
         lines.append(f"  limit points at load factor: {limits}; bifurcations near load factor: {bifurcations}")
+    if summary.get("stage") == "buckling":
+        b = summary["buckling"]
+        factors = ", ".join(f"{v:.6g}" for v in b["load_factors"]) or "none found"
+        lines.append(f"  critical load factors: {factors} (reference {b['reference_time']:g}, increment "
+                     f"{b['increment']:g}, {b['prestress']} prestress)")
     if "probe_displacement" in summary:
         for p, d in zip(summary["probe_points"], summary["probe_displacement"], strict=True):
             lines.append(f"  displacement at {tuple(p)}: {np.array2string(np.asarray(d), precision=6)} m")
