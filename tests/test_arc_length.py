@@ -7,11 +7,13 @@ r"""Arc-length continuation (issue 22): through limit points, against closed for
   h = 0.35, measured), the limit point is found once and located at
   :math:`p/\mu = 0.8175` against 0.8164 (0.016 % at h = 0.35), and the
   tangent gains exactly one negative pivot past it (unstable under pressure
-  control), on 1 and 2 ranks.
+  control), on 1 and 2 ranks (``test_inflation_demo``).
 * **Shallow clamped arch** under its weight: the full snap-through path,
   load maximum, descending branch, minimum; the located limit loads agree
-  for arc lengths a factor 2 apart (1.67352 and 1.67342 measured) and the
+  for arc lengths a factor 2 apart (1.673405 and 1.673530 measured) and the
   pivots go 0 → 1 → 0.
+* **Branch switching**: a perfect Euler column buckles and follows the elastica.
+* A continuation in a ``Simulation``: rows, summary, checkpoint and restart.
 * **Prescribed displacement** as the only load: the path is the homogeneous
   uniaxial stretch, with the Dirichlet rows moved with :math:`\lambda`.
 * The pivot count against dense eigenvalues; bad settings and refused set-ups.
@@ -27,45 +29,13 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import hyperfem as hf
-from hyperfem.cases.instability import SPHERE_PRESSURE_MAXIMUM, inflated_sphere, shallow_arch, sphere_pressure
+from hyperfem.cases.instability import SPHERE_PRESSURE_MAXIMUM, shallow_arch
 from hyperfem.cases.uniaxial import uniaxial_rollers, unit_cube
 from hyperfem.errors import ParameterError
 from hyperfem.materials.neo_hookean import neo_hookean
 from hyperfem.materials.parameters import LameParameters
 from hyperfem.problem import HyperelasticProblem
 from hyperfem.solver import ArcLength, NewtonSolver, continue_arc_length, negative_pivots
-
-
-def test_sphere_inflation_through_the_pressure_maximum():
-    case = inflated_sphere(h=0.5)
-    stretches: list[float] = []
-
-    def on_step(record):
-        stretches.append(case.inner_stretch())
-
-    history = continue_arc_length(
-        NewtonSolver(case.problem),
-        ArcLength(increment=0.1, end=None, max_steps=40),
-        on_step=on_step,
-        stop=lambda record: stretches[-1] >= 2.5,
-    )
-    assert stretches[-1] >= 2.5
-    loads = np.array([r.time for r in history])
-    closed = sphere_pressure(np.array(stretches))
-    assert np.max(np.abs(loads - closed) / closed) < 0.01
-    assert np.all(np.diff(stretches) > 0)  # the balloon keeps growing, the pressure turns
-    limits = [r for r in history if r.limit_point]
-    assert len(limits) == 1
-    p_max, la_max = SPHERE_PRESSURE_MAXIMUM
-    assert abs(limits[0].limit_load - p_max) / p_max < 0.005
-    k = history.index(limits[0])
-    assert max(loads) >= limits[0].time and abs(max(loads) - limits[0].limit_load) < 2e-3
-    assert all(r.dt > 0 for r in history[:k]) and all(r.dt < 0 for r in history[k + 1 :])
-    # One more negative pivot past the maximum: stable before it, unstable after.
-    negatives = [r.negative_pivots for r in history]
-    assert all(r.stable for r in history[:k]) and not any(r.stable for r in history[k:])
-    assert set(negatives[k:]) == {negatives[0] + 1}
-    assert not any(r.bifurcation for r in history)
 
 
 def _run_arch(increment):
@@ -87,8 +57,8 @@ def _run_arch(increment):
 
 
 def test_arch_snaps_through_with_step_size_independent_limit_loads():
-    coarse, d_coarse = _run_arch(0.2)
-    fine, d_fine = _run_arch(0.1)
+    coarse, d_coarse = _run_arch(0.4)
+    fine, d_fine = _run_arch(0.2)
     for history, deflection in ((coarse, d_coarse), (fine, d_fine)):
         limits = [r for r in history if r.limit_point]
         assert len(limits) == 2
@@ -104,7 +74,7 @@ def test_arch_snaps_through_with_step_size_independent_limit_loads():
     ):
         assert abs(a - b) / b < 1e-3
     # Regression (this mesh and settings, a run on 1 and 2 ranks): the maximum and the minimum of the path.
-    assert [r.limit_load for r in fine if r.limit_point] == pytest.approx([1.67352, 0.810462], rel=2e-4)
+    assert [r.limit_load for r in fine if r.limit_point] == pytest.approx([1.673405, 0.810461], rel=2e-4)
 
 
 def test_prescribed_displacement_path_is_the_homogeneous_stretch():
@@ -180,6 +150,10 @@ def test_shell_mesh_bad_input():
 
 
 def test_inflation_demo(shared_tmp, capsys):
+    """demos/inflation.py on h = 0.5 to an inner stretch of 2.5: the path within 1 % of the closed form at every
+    step (0.57 % measured), the maximum found once and located within 0.5 % (0.81746 against 0.81642), the
+    stretch growing all along while the pressure turns, one more negative pivot past the maximum (unstable
+    under pressure control), no bifurcation; the PNG and the printed line."""
     import importlib.util
     from pathlib import Path
 
@@ -187,9 +161,17 @@ def test_inflation_demo(shared_tmp, capsys):
     spec = importlib.util.spec_from_file_location("demo_inflation", path)
     demo = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(demo)
-    result = demo.main(["--sizes", "0.5", "--stretch", "2.0", "--output", str(shared_tmp)])
-    assert result["max_relative_errors"][0] < 0.01
-    assert abs(result["located_maxima"][0] - SPHERE_PRESSURE_MAXIMUM[0]) < 0.004
+    result = demo.main(["--sizes", "0.5", "--stretch", "2.5", "--output", str(shared_tmp)])
+    run = result["runs"][0]
+    assert run["inner_stretch"][-1] >= 2.5 and result["max_relative_errors"][0] < 0.01
+    assert np.all(np.diff(run["inner_stretch"]) > 0)
+    p_max, _ = SPHERE_PRESSURE_MAXIMUM
+    assert len(run["limit_loads"]) == 1 and abs(run["limit_loads"][0] - p_max) / p_max < 0.005
+    loads = np.array(run["pressure"])
+    k = int(np.argmax(loads))
+    assert 0 < k < len(loads) - 1 and np.all(np.diff(loads[: k + 1]) > 0) and np.all(np.diff(loads[k:]) < 0)
+    negatives = run["negative_pivots"]  # per step (row 0, the start, is not among them)
+    assert set(negatives[: k - 1]) == {negatives[0]} and set(negatives[k:]) == {negatives[0] + 1}
     if MPI.COMM_WORLD.rank == 0:
         assert (shared_tmp / "inflation.png").stat().st_size > 0
         assert "maximum p/mu" in capsys.readouterr().out
@@ -272,21 +254,21 @@ def _arch_simulation(folder, stop_after=None):
         StopAfter(),
         CSVLog(folder / "arch.csv"),
         JSONSummary(folder / "arch.json"),
-        Checkpoint(folder / "ckpt", every=4),
+        Checkpoint(folder / "ckpt", every=3),
     ]
-    settings = ArcLength(increment=0.2, end=None, max_steps=12)
+    settings = ArcLength(increment=0.2, end=None, max_steps=9)
     return Simulation(case.problem, NewtonSolver(case.problem), settings, outputs, name="arch")
 
 
 def test_simulation_continuation_rows_summary_and_restart(shared_tmp):
     """The arch in a Simulation: the load factor is the time column, every row has the step's pivots and
-    events, the summary the limit point; a run killed after step 6 and continued from its checkpoint at
-    step 4 ends where the uninterrupted one does."""
+    events, the summary the limit point; a run killed after step 5 and continued from its checkpoint at
+    step 3 ends where the uninterrupted one does."""
     import csv
 
     full = _arch_simulation(shared_tmp / "full")
     summary = full.run()
-    assert summary["stage"] == "arc-length" and summary["completed"] and summary["steps"] == 12
+    assert summary["stage"] == "arc-length" and summary["completed"] and summary["steps"] == 9
     assert summary["end"] is None
     assert summary["limit_points"] == pytest.approx([1.67342], rel=1e-3)
     rows = summary["rows"]
@@ -296,12 +278,12 @@ def test_simulation_continuation_rows_summary_and_restart(shared_tmp):
     MPI.COMM_WORLD.Barrier()
     with (shared_tmp / "full" / "arch.csv").open() as fh:
         table = list(csv.DictReader(fh))
-    assert len(table) == 13 and "limit_point" in table[0] and "negative_pivots" in table[0]
+    assert len(table) == 10 and "limit_point" in table[0] and "negative_pivots" in table[0]
 
     with pytest.raises(_Killed):
-        _arch_simulation(shared_tmp / "cut", stop_after=6).run()
+        _arch_simulation(shared_tmp / "cut", stop_after=5).run()
     resumed = _arch_simulation(shared_tmp / "cut").run(restart=shared_tmp / "cut" / "ckpt")
-    assert resumed["completed"] and resumed["steps"] == 12
+    assert resumed["completed"] and resumed["steps"] == 9
     assert resumed["limit_points"] == pytest.approx(summary["limit_points"], rel=1e-8)
     for a, b in zip(resumed["rows"], rows, strict=True):
         assert a["time"] == pytest.approx(b["time"], rel=1e-8, abs=1e-12)

@@ -86,3 +86,31 @@ def test_geometry_of_the_shell_reaches_the_generator():
 
 def test_quasi_static_cases_are_unchanged():
     assert "LoadStepping(initial_increment=0.5)" in script(load_case(Path(ROOT / "cases" / "block_mixed.toml")))
+
+
+def test_a_probe_stops_the_continuation(shared_tmp):
+    """stop_probe/stop_component/stop_value: the run ends at the first step whose inner-face probe has moved
+    0.1 outward (on the rising branch), although max_displacement would allow more."""
+    overrides = ["stepping.stop_probe=[1.0, 0.0, 0.0]", 'stepping.stop_component="x"', "stepping.stop_value=0.1",
+                 "output.checkpoint=false"]
+    case = load_case(CASE, overrides, output=shared_tmp)
+    assert "probe_stop=((1.0, 0.0, 0.0), 0, 0.1)" in script(case)
+    summary = build(case).simulation.run()
+    probes = [r["probe_displacement"][0][0] for r in summary["rows"]]
+    assert probes[-1] >= 0.1 > probes[-2]
+    with pytest.raises(CaseFileError, match="stepping.stop_value: give stop_probe, stop_component and stop_value"):
+        load_case(CASE, ["stepping.stop_probe=[1.0, 0.0, 0.0]", 'stepping.stop_component="x"'])
+
+
+def test_probe_stop_settings_are_checked(shared_tmp):
+    from hyperfem.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="probe_stop component"):
+        ArcLength(probe_stop=((0.0, 0.0, 0.0), 3, 1.0))
+    with pytest.raises(ParameterError, match="probe_stop must be"):
+        ArcLength(probe_stop=(0.0, 1.0))
+    from hyperfem.solver import NewtonSolver, continue_arc_length
+
+    problem = build(load_case(CASE, ["mesh.size=1.0"], output=shared_tmp)).problem
+    with pytest.raises(ParameterError, match="probe_stop is evaluated by a Simulation"):
+        continue_arc_length(NewtonSolver(problem), ArcLength(probe_stop=((1.0, 0.0, 0.0), 0, 0.1)))

@@ -20,6 +20,10 @@ import pytest
 
 pytest.importorskip("ipctk")  # the demo imports the contact package, which needs it for mesh contact only
 
+# A convergence study on three meshes (16 s of the suite's budget per pass); 1 rank = 2 ranks of contact is
+# checked by tests/test_contact.py and the demos' tests, so this runs serially only.
+pytestmark = pytest.mark.serial
+
 DEMO = Path(__file__).resolve().parent.parent / "demos" / "contact.py"
 SIZES = (8, 12, 16)
 

@@ -686,6 +686,10 @@ ARC_LENGTH = {
     "max_displacement": Key("number", above=0.0, example=1.5,
                             help="stop once a node has moved farther than this (length units)"),
     "max_steps": Key("integer", minimum=1, default=200, help="the number of accepted steps, at most"),
+    "stop_probe": Key("vector", length=3, example=(1.0, 0.0, 0.0),
+                      help="stop once the displacement component stop_component here reaches stop_value"),
+    "stop_component": Key("string", choices=("x", "y", "z"), example="x", help="with stop_probe: the component"),
+    "stop_value": Key("number", example=1.5, help="with stop_probe: the displacement (length units) to stop at"),
     "target_iterations": Key("integer", minimum=1, default=5,
                              help="a step of at most this many corrector iterations is easy (the arc doubles)"),
     "direction": Key("integer", minimum=-1, maximum=1, default=1, help="the sign of the first load increment: 1 or -1"),
@@ -1237,7 +1241,14 @@ def check_stepping(table: Mapping) -> SteppingSpec:
             )
         if values.get("direction", 1) not in (1, -1):
             raise CaseFileError(f"stepping.direction: must be 1 or -1, got {values['direction']!r}")
-        options = {k: v for k, v in values.items() if k not in ("type", "solve_initial")}
+        probe = [k for k in ("stop_probe", "stop_component", "stop_value") if k in values]
+        if probe and len(probe) != 3:
+            missing = next(k for k in ("stop_probe", "stop_component", "stop_value") if k not in values)
+            raise CaseFileError(f"stepping.{missing}: give stop_probe, stop_component and stop_value together")
+        options = {k: v for k, v in values.items() if k not in ("type", "solve_initial", *probe)}
+        if probe:
+            component = "xyz".index(values["stop_component"])
+            options["probe_stop"] = (tuple(values["stop_probe"]), component, float(values["stop_value"]))
         options.setdefault("end", None)  # no default end: a continuation stops by max_steps or another limit
         return SteppingSpec(type=kind, options=options, solve_initial=values.get("solve_initial", False))
     if kind == "quasi-static":

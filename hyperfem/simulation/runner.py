@@ -41,7 +41,7 @@ from __future__ import annotations
 import signal
 import time as _time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
@@ -49,6 +49,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from hyperfem.io.probes import PointProbe
 from hyperfem.errors import ConvergenceError, Interrupted, ParameterError
 from hyperfem.mesh.quality import MeshQuality, mesh_quality
 from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepProblem, TimeStepState
@@ -382,7 +383,7 @@ class Simulation:
             resume = {}
             if meta is not None:  # the step-size control carries on its counts
                 resume = {"streak": min(self.stepper.streak, policy.grow_after - 1), "attempts": self.stepper.attempts}
-            finished = getattr(self.stage, "finished", None)  # a stage may end the run early (continuation)
+            finished = self._finished()
             run_steps(self.stage, policy, lambda record: self._accept(record, None), stop=finished, **resume)
             self.completed = True
         except ConvergenceError as exc:
@@ -407,6 +408,22 @@ class Simulation:
             self._guard.__exit__(None, None, None)
             self._close(started)
         return self.summary()
+
+    def _finished(self) -> Callable[[StepRecord], bool] | None:
+        """When the run ends before its end time: the stage's own test (a continuation's) and its probe stop."""
+        stage_test = getattr(self.stage, "finished", None)
+        probe_stop = None if self.continuation is None else self.continuation.probe_stop
+        if probe_stop is None:
+            return stage_test
+        point, component, value = probe_stop
+        probe = PointProbe(self.fields.base.domain.mesh, [list(point)])
+        start = float(probe(self.fields.displacement)[0, component])
+
+        def finished(record: StepRecord) -> bool:
+            now = float(probe(self.fields.displacement)[0, component])  # fields are refreshed by _accept
+            return bool(stage_test is not None and stage_test(record)) or (now - value) * (start - value) <= 0
+
+        return finished
 
     def _kept(self, checkpoint_words: str) -> str:
         """`` (completed steps written to ...; <checkpoint_words> CHECKPOINT)`` for the message of a stopped run."""

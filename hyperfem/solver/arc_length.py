@@ -113,7 +113,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from typing import Any, cast
 
@@ -139,7 +139,7 @@ from hyperfem.solver.stepping import (
     _Snapshot,
     run_steps,
 )
-from hyperfem.validation import check_count, check_finite_scalar, check_positive
+from hyperfem.validation import check_count, check_finite_scalar, check_finite_vector, check_positive
 
 __all__ = ["ArcLength", "ArcLengthRecord", "ArcLengthStage", "continue_arc_length"]
 
@@ -195,6 +195,11 @@ class ArcLength:
         min_load: Stop once the load factor falls below it (``None``: no such stop).
         max_displacement: Stop once a node has moved farther than this
             (length units; ``None``: no such stop).
+        probe_stop: Stop once the displacement component ``component`` at the
+            reference point ``point`` reaches ``value`` (from either side of
+            its start): ``(point, component, value)``, or ``None``. Evaluated by a
+            :class:`~hyperfem.simulation.Simulation` (case files); with
+            :func:`continue_arc_length` pass a ``stop`` callable instead.
         max_steps: Accepted steps before the run stops.
         max_attempts: Attempts (accepted and cut back) before the run fails.
         target_iterations: A step of at most this many corrector iterations is easy (the arc length doubles).
@@ -220,6 +225,7 @@ class ArcLength:
     end: float | None = 1.0
     min_load: float | None = None
     max_displacement: float | None = None
+    probe_stop: tuple[Sequence[float], int, float] | None = None
     max_steps: int = 200
     max_attempts: int = 2000
     target_iterations: int = 5
@@ -239,6 +245,17 @@ class ArcLength:
                 check_finite_scalar(getattr(self, name), where, name)
         if self.max_displacement is not None:
             check_positive("max_displacement", self.max_displacement, where)
+        if self.probe_stop is not None:
+            try:
+                point, component, value = self.probe_stop
+            except (TypeError, ValueError):
+                raise ParameterError(
+                    f"{where}: probe_stop must be (point, component, value), got {self.probe_stop!r}"
+                ) from None
+            check_finite_vector(point, where, "probe_stop point")
+            if component not in (0, 1, 2) or isinstance(component, bool):
+                raise ParameterError(f"{where}: probe_stop component must be 0, 1 or 2, got {component!r}")
+            check_finite_scalar(value, where, "probe_stop value")
         if not self.min_step <= self.increment <= self.max_step or self.min_step <= 0:
             raise ParameterError(
                 f"{where}: need 0 < min_increment <= increment <= max_increment, got "
@@ -890,7 +907,11 @@ class ArcLengthStage(QuasiStaticStage):
         return dict(self.events)
 
     def finished(self, record: StepRecord) -> bool:
-        """Whether the run ends after ``record``: ``max_steps``, ``min_load`` or ``max_displacement`` reached."""
+        """Whether the run ends after ``record``: ``max_steps``, ``min_load`` or ``max_displacement`` reached.
+
+        (``probe_stop`` is evaluated by the :class:`~hyperfem.simulation.Simulation` that runs the stage:
+        point evaluation belongs to the output layer.)
+        """
         s = self.settings
         if self.steps >= s.max_steps or (s.min_load is not None and self._time < s.min_load):
             return True
@@ -974,6 +995,10 @@ def continue_arc_length(
             prescribed displacements do not change with the load factor.
     """
     s = ArcLength() if settings is None else settings
+    if s.probe_stop is not None:
+        raise ParameterError(
+            "continue_arc_length: probe_stop is evaluated by a Simulation; here pass stop=, e.g. a PointProbe test"
+        )
     stage = ArcLengthStage(solver.problem, solver, s)
     history: list[ArcLengthRecord] = []
 
