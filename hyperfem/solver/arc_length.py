@@ -379,7 +379,6 @@ class _Path:
     mode: PETSc.Vec | None = None  # the critical mode the next step follows (branch switching)
     secant: tuple[PETSc.Vec, float] | None = None  # the last increment, the predictor just after a switch
     switched: bool = False
-    attempts: int = 0
 
 
 class _Continuation:
@@ -874,32 +873,28 @@ class ArcLengthStage(QuasiStaticStage):
         u_start, sign, slope = self._before
         path, run = self._path, self._run
         best = (self.problem.u.x.array.copy(), *found)
-        tangent = path.tangent.duplicate()
         lo, hi = 0.0, arc
-        try:
-            for _ in range(BISECTIONS):
-                mid = 0.5 * (lo + hi)
-                self.problem.u.x.array[:] = u_start
-                self._tangent_before.copy(path.tangent)
-                path.sign, path.slope, path.arc = sign, slope, mid
-                run.load_state(lam0)
-                record, dlam, du = run.attempt(lam0, path)
-                if not record.converged:
-                    break
-                _, negative = run.settle(lam0 + dlam, du, dlam, path)
-                if negative != before:
-                    hi, best = mid, (self.problem.u.x.array.copy(), lam0 + dlam, dlam, du, negative)
-                else:
-                    lo = mid
-            u, lam, dlam, du, negative = best
-            self.problem.u.x.array[:] = u
+        for _ in range(BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            self.problem.u.x.array[:] = u_start
             self._tangent_before.copy(path.tangent)
-            path.sign, path.slope = sign, slope
-            self.problem.set_time(lam)
-            run.load_state(lam)
-            run.settle(lam, du, dlam, path)  # the tangent of this state, factorised, for the critical mode
-        finally:
-            tangent.destroy()
+            path.sign, path.slope, path.arc = sign, slope, mid
+            run.load_state(lam0)
+            record, dlam, du = run.attempt(lam0, path)
+            if not record.converged:
+                break
+            _, negative = run.settle(lam0 + dlam, du, dlam, path)
+            if negative != before:
+                hi, best = mid, (self.problem.u.x.array.copy(), lam0 + dlam, dlam, du, negative)
+            else:
+                lo = mid
+        u, lam, dlam, du, negative = best
+        self.problem.u.x.array[:] = u
+        self._tangent_before.copy(path.tangent)
+        path.sign, path.slope = sign, slope
+        self.problem.set_time(lam)
+        run.load_state(lam)
+        run.settle(lam, du, dlam, path)  # the tangent of this state, factorised, for the critical mode
         return lam, dlam, negative
 
     def measure(self) -> dict[str, Any]:
