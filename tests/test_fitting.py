@@ -50,6 +50,11 @@ from hyperfem.materials.ogden import (
     ogden_uniaxial_stress,
 )
 from hyperfem.materials.yeoh import yeoh_isochoric
+from hyperfem.materials.neo_hookean import neo_hookean_isochoric
+from hyperfem.materials.prony import PronySeries
+from hyperfem.materials.prony_fit import PronyFit, RelaxationCurve, fit_prony
+from hyperfem.materials.viscoelastic import Viscoelastic
+from hyperfem.problem import SplitEnergy
 
 ROOT = Path(__file__).resolve().parent.parent
 STRETCH = np.array([0.6, 0.9, 1.0, 1.3, 2.0, 4.0])
@@ -335,3 +340,119 @@ def test_cli_fit_errors_are_one_line(name, capsys):
         assert "Traceback" not in err
     else:
         assert err == ""
+
+
+# -- relaxation: a Prony series ---------------------------------------------------------------------------
+TRUE_PRONY = PronySeries(g=(0.3, 0.2), tau=(0.2, 1.0))
+RELAX_TIMES = np.linspace(0.0, 5.0, 51)
+
+
+def _relaxation(ramp: float, P0: float = 2.5, series: PronySeries = TRUE_PRONY, times=RELAX_TIMES) -> RelaxationCurve:
+    """Synthetic stress data of a ramp over ``ramp`` then held: P0 r(t) [g_inf + sum g_i a_i e^(-(t - t_r)/tau_i)]."""
+    if ramp > 0:
+        y = P0 * np.minimum(times / ramp, 1.0) * series.ramp_and_hold(times, ramp)
+    else:
+        y = P0 * series.relaxation(times)
+    return RelaxationCurve(times, y, "stress", ramp)
+
+
+@pytest.mark.parametrize("ramp", [0.0, 0.5])
+def test_prony_fit_recovers_a_two_term_series(ramp):
+    """Exact data of (g, tau) = ((0.3, 0.2), (0.2, 1)) s, P0 = 2.5: the times fitted from log-spaced starts."""
+    result = fit("prony", _relaxation(ramp), terms=2)
+    assert isinstance(result, PronyFit) and result.converged and result.tau_fitted
+    np.testing.assert_allclose(result.prony.g, TRUE_PRONY.g, rtol=1e-6)
+    np.testing.assert_allclose(result.prony.tau, TRUE_PRONY.tau, rtol=1e-6)  # measured ~1e-15
+    assert result.instantaneous == pytest.approx(2.5, rel=1e-6)
+    assert result.errors["relaxation"].relative_rms < 1e-6
+    # the series is the solver's: a PronySeries a Viscoelastic takes, and its response is ramp_and_hold's
+    Viscoelastic(SplitEnergy(lambda F: neo_hookean_isochoric(F, 1.0), 100.0), result.prony)
+    np.testing.assert_allclose(result.response(RELAX_TIMES), _relaxation(ramp).value, rtol=1e-6)
+    fixed = fit("prony", _relaxation(ramp), tau=(1.0, 0.2))  # given times: linear, non-negative least squares
+    assert not fixed.tau_fitted and fixed.prony.tau == (0.2, 1.0)
+    np.testing.assert_allclose(fixed.prony.g, TRUE_PRONY.g, rtol=1e-9)
+
+
+def test_prony_fit_of_the_normalised_modulus():
+    curve = RelaxationCurve(RELAX_TIMES, TRUE_PRONY.relaxation(RELAX_TIMES), "modulus")
+    result = fit_prony(curve, terms=2)
+    np.testing.assert_allclose([*result.prony.g, *result.prony.tau], [0.3, 0.2, 0.2, 1.0], rtol=1e-6)
+    assert result.instantaneous == 1.0 and "rms" in result.to_json() and "rms_MPa" not in result.to_json()
+    table = tomllib.loads(result.case_table())["material"]["viscoelastic"]
+    np.testing.assert_allclose([*table["g"], *table["tau"]], [0.3, 0.2, 0.2, 1.0], rtol=1e-5)
+
+
+def test_prony_fit_of_noisy_data_is_sensible():
+    """1 % multiplicative noise: the fit's rms is the noise's, the curve and the series near the truth.
+
+    Measured over the seeds 0-7: relative rms 0.008-0.010, the curve within 0.2-0.7 % of the clean one
+    (of its peak), g_inf 0.491-0.510; seed 1: g = (0.286, 0.218), tau = (0.182, 0.920).
+    """
+    rng = np.random.default_rng(1)
+    clean = _relaxation(0.5)
+    noisy = RelaxationCurve(clean.time, clean.value * (1.0 + 0.01 * rng.standard_normal(clean.time.size)), "stress",
+                            0.5)
+    result = fit("prony", noisy, terms=2)
+    assert 0.005 < result.errors["relaxation"].relative_rms < 0.012
+    assert np.max(np.abs(result.response(clean.time) - clean.value)) < 0.01 * clean.value.max()
+    assert result.prony.g_inf == pytest.approx(0.5, abs=0.02)
+    np.testing.assert_allclose(result.prony.g, TRUE_PRONY.g, atol=0.04)
+    np.testing.assert_allclose(result.prony.tau, TRUE_PRONY.tau, rtol=0.2)
+    assert all(r > 10.0 * result.errors["relaxation"].rms for r in result.term_rms)  # every term carries the fit
+
+
+RELAXATION_ERRORS = {
+    "negative time": ("time_s,nominal_stress_MPa\n-1,1\n0,1\n1,0.8\n", {}, ":2: time_s must be >= 0"),
+    "too few points": ("time_s,nominal_stress_MPa\n0,1\n1,0.8\n2,0.7\n3,0.65\n", {"terms": 2},
+                       "fit: 4 relaxation points for 5 unknowns (2 g_i, 2 tau_i, P0): need at least 6"),
+    "relaxes to zero": ("time_s,nominal_stress_MPa\n" + "".join(f"{t},{np.exp(-t)!s}\n" for t in range(8)),
+                        {"terms": 1}, "fit: the fitted series relaxes completely (g_inf = 0, sum of g_i = 1)"),
+    "no value column": ("time_s,stress\n0,1\n", {}, "neither of the columns nominal_stress_MPa and relaxation_modulus"),
+    "sign": ("time_s,nominal_stress_MPa\n0,1\n1,-0.8\n2,0.7\n", {}, "must keep one sign"),
+    "tau": ("time_s,nominal_stress_MPa\n0,1\n1,0.8\n2,0.7\n", {"tau": (0.5, -1.0)},
+            "tau must hold relaxation times > 0"),
+}
+
+
+@pytest.mark.parametrize("name", list(RELAXATION_ERRORS))
+def test_prony_fit_refuses_bad_data(name, tmp_path):
+    text, kwargs, expected = RELAXATION_ERRORS[name]
+    path = tmp_path / f"{name.replace(' ', '_')}.csv"
+    path.write_text(text)
+    with pytest.raises(ParameterError) as info:
+        fit("prony", path, **kwargs)
+    assert expected in str(info.value) and "\n" not in str(info.value), str(info.value)
+    with pytest.raises(ParameterError, match="fit: bulk_modulus is an option of the hyperelastic laws, not of prony"):
+        fit("prony", _relaxation(0.0), bulk_modulus=1.0)
+    with pytest.raises(ParameterError, match="fit: tau is an option of law 'prony'"):
+        fit("yeoh", treloar_data(), tau=(1.0,))
+
+
+def test_cli_fit_prony_json(shared_tmp, capsys):
+    """``hyperfem fit RELAX.csv --law prony --ramp-time 0.5 --json``: g, tau, rms by mode; the text has the table."""
+    curve = _relaxation(0.5, times=np.linspace(0.0, 5.0, 26))
+    path = shared_tmp / "relax.csv"
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text("time_s,nominal_stress_MPa\n" + "".join(f"{t:.17g},{y:.17g}\n" for t, y in
+                                                                 zip(curve.time, curve.value, strict=True)))
+    MPI.COMM_WORLD.Barrier()
+    png = shared_tmp / "relax.png"
+    summary = dispatch(["fit", str(path), "--law", "prony", "--terms", "2", "--ramp-time", "0.5", "--json",
+                        "--png", str(png)])
+    np.testing.assert_allclose(summary["parameters"]["g"], [0.3, 0.2], rtol=1e-6)
+    if MPI.COMM_WORLD.rank == 0:
+        printed = json.loads(capsys.readouterr().out)
+        assert printed["law"] == "prony" and set(printed["rms_MPa"]) == {"relaxation"}
+        np.testing.assert_allclose(printed["parameters"]["tau"], [0.2, 1.0], rtol=1e-6)
+        assert printed["instantaneous_stress_MPa"] == pytest.approx(2.5) and png.stat().st_size > 10_000
+    dispatch(["fit", str(path), "--law", "prony", "--tau", "0.2,1", "--ramp-time", "0.5"])
+    if MPI.COMM_WORLD.rank == 0:
+        out = capsys.readouterr().out
+        assert "[material.viscoelastic]\ng = [0.3, 0.2]\ntau = [0.2, 1]" in out and "relaxation times given" in out
+    with pytest.raises(SystemExit) as info:
+        run(lambda: dispatch(["fit", str(path), "--law", "yeoh"]))
+    assert info.value.code == 1
+    if MPI.COMM_WORLD.rank == 0:
+        err = capsys.readouterr().err
+        assert err.startswith("hyperfem: error: fit: ") and "fit them with law 'prony'" in err
+        assert err.count("\n") == 1

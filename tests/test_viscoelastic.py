@@ -237,6 +237,29 @@ def test_small_strain_relaxation_matches_the_linear_closed_form():
     assert sum(r.rejected for r in records) == 0 and psi.history.commits == len(t) - 1
 
 
+def test_a_prony_series_fitted_to_the_solvers_relaxation_is_the_series_it_ran():
+    """The small-strain bar's reactions as relaxation data (hf.materials.fit "prony"): the series comes back.
+
+    The fit's model (PronySeries.ramp_and_hold) and the solver's recursion agree to O(eps0) here, so
+    the fitted series is the one the run used, and runs again as a Viscoelastic.
+    """
+    from hyperfem.materials.prony_fit import RelaxationCurve
+
+    eps, t_ramp = 1e-3, 0.5
+    _, problem, solver = _bar(1.0 + eps, t_ramp)
+    t, P, _ = _relax(problem, solver, _policy(2.5, 0.1, must_hit=(t_ramp,)))
+    data = RelaxationCurve(np.concatenate([[0.0], t]), np.concatenate([[0.0], P]), "stress", t_ramp)
+    fitted = hf.materials.fit("prony", data, terms=2)
+    # measured: g (0.29977, 0.20067), tau (0.19845, 0.99380), P0 / (E0 eps0) 1.00031, relative rms 5.5e-5;
+    # the times given: g (0.30076, 0.19954)
+    np.testing.assert_allclose(fitted.prony.g, PRONY.g, atol=5e-3)
+    np.testing.assert_allclose(fitted.prony.tau, PRONY.tau, rtol=2e-2)
+    assert fitted.instantaneous == pytest.approx(E0 * eps, rel=5e-3)
+    given = hf.materials.fit("prony", data, tau=PRONY.tau)
+    np.testing.assert_allclose(given.prony.g, PRONY.g, atol=2e-3)
+    Viscoelastic(ELASTIC, fitted.prony)  # usable as it is
+
+
 def test_large_stretch_relaxation_is_the_simo_recursion_second_order_in_time():
     """Stretch 1.5 ramped over 1, held to 1.5: = the NumPy recursion at the same steps; order 2 under refinement."""
     t_ramp, end = 1.0, 1.5

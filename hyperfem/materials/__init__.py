@@ -266,6 +266,14 @@ __all__ += [
 ]
 
 from hyperfem.materials.prony import PronySeries  # noqa: E402
+from hyperfem.materials.prony_fit import (  # noqa: E402
+    PronyFit,
+    RelaxationCurve,
+    fit_prony,
+    plot_relaxation,
+    read_relaxation,
+)
 from hyperfem.materials.viscoelastic import Viscoelastic, ViscousHistory  # noqa: E402
 
 __all__ += ["PronySeries", "Viscoelastic", "ViscousHistory"]
+__all__ += ["PronyFit", "RelaxationCurve", "fit_prony", "plot_relaxation", "read_relaxation"]

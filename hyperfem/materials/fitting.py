@@ -20,7 +20,10 @@ volumetric: :math:`P_{11} = -p\,J^{2/3}` for a pressure :math:`p`); other
 columns are ignored. The fitted moduli are in the data's unit (MPa).
 Treloar's 1944 data ship with hyperfem (:func:`treloar_data`, the file
 ``hyperfem/materials/data/treloar1944.csv`` and its source note beside it).
-Relaxation (viscoelastic) data are not fitted: elastic laws only.
+Relaxation data (time and the stress at a held strain, or :math:`g(t)`) are fitted
+with ``law="prony"``: a :class:`~hyperfem.materials.prony.PronySeries` for a
+:class:`~hyperfem.materials.viscoelastic.Viscoelastic`
+(:mod:`~hyperfem.materials.prony_fit`, :func:`~hyperfem.materials.prony_fit.read_relaxation`).
 
 **Model.** The response of each law is that of its own UFL energy
 (:class:`~hyperfem.materials.homogeneous.HomogeneousResponse`: the law's
@@ -76,7 +79,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 import ufl
@@ -105,6 +108,9 @@ from hyperfem.materials.yeoh import (
     yeoh,
 )
 from hyperfem.validation import check_positive
+
+if TYPE_CHECKING:  # prony_fit imports this module's helpers: fit() imports it when called
+    from hyperfem.materials.prony_fit import PronyFit
 
 __all__ = [
     "BULK_RATIO",
@@ -196,6 +202,9 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
     header = [h.strip() for h in rows[0]]
     index: dict[str, int] = {}
     for column in COLUMNS:
+        if column not in header and "time_s" in header:
+            raise ParameterError(f"fit: {path}: relaxation data (a column time_s): fit them with law 'prony' "
+                                 f"(hyperfem fit {path.name} --law prony)")
         if column not in header:
             near = _did_you_mean(column, header) or next(
                 (f" (a column {h!r}: name it {column!r})" for h in header if h.lower() == column.lower()), ""
@@ -439,8 +448,8 @@ _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "veronda_westmann": _veronda_westmann,
     "ogden": _ogden,
 }
-FIT_LAWS: tuple[str, ...] = tuple(_MODELS)
-"""The laws :func:`fit` knows (their case-file names)."""
+FIT_LAWS: tuple[str, ...] = (*_MODELS, "prony")
+"""The laws :func:`fit` knows (their case-file names; ``prony``: a Prony series to relaxation data)."""
 
 _TERMS = {"reduced_polynomial": 3, "ogden": 3}
 """Laws with a number of terms, and its default."""
@@ -717,13 +726,17 @@ def _number(value: float) -> str:
 
 
 # -- the fit ---------------------------------------------------------------------------------------------
-def _select(data: Mapping[str, Curve] | Sequence[Curve] | str | Path, modes: Sequence[str] | None) -> dict[str, Curve]:
+def _select(data: object, modes: Sequence[str] | None) -> dict[str, Curve]:
+    curves: dict[str, Any]
     if isinstance(data, (str, Path)):
-        curves = read_curves(data)
+        curves = dict(read_curves(data))
     elif isinstance(data, Mapping):
         curves = dict(data)
-    else:
+    elif isinstance(data, Sequence) and all(isinstance(c, Curve) for c in data):
         curves = {c.mode: c for c in data}
+    else:
+        raise ParameterError(f"fit: data must be curves by mode, a sequence of Curve or a CSV path, got "
+                             f"{type(data).__name__} (relaxation data: law 'prony')")
     for name, curve in curves.items():
         if not isinstance(curve, Curve) or curve.mode != name:
             raise ParameterError(f"fit: data must map each mode to its Curve, got {name!r}: {curve!r}")
@@ -797,6 +810,25 @@ def _stability_and_curves(
     return tuple(lost), smooth
 
 
+@overload
+def fit(
+    law: Literal["prony"],
+    data: Any,
+    *,
+    terms: int | None = None,
+    modes: Sequence[str] | None = None,
+    bulk_modulus: float | None = None,
+    volumetric: str = "log",
+    weighting: str = "relative",
+    initial: Mapping[str, float] | None = None,
+    max_iterations: int | None = None,
+    tau: Sequence[float] | None = None,
+    fit_tau: bool | None = None,
+    ramp_time: float | None = None,
+) -> PronyFit: ...
+
+
+@overload
 def fit(
     law: str,
     data: Mapping[str, Curve] | Sequence[Curve] | str | Path,
@@ -807,13 +839,40 @@ def fit(
     volumetric: str = "log",
     weighting: str = "relative",
     initial: Mapping[str, float] | None = None,
-    max_iterations: int = 500,
-) -> FitResult:
+    max_iterations: int | None = None,
+    tau: Sequence[float] | None = None,
+    fit_tau: bool | None = None,
+    ramp_time: float | None = None,
+) -> FitResult: ...
+
+
+def fit(
+    law: str,
+    data: Any,
+    *,
+    terms: int | None = None,
+    modes: Sequence[str] | None = None,
+    bulk_modulus: float | None = None,
+    volumetric: str = "log",
+    weighting: str = "relative",
+    initial: Mapping[str, float] | None = None,
+    max_iterations: int | None = None,
+    tau: Sequence[float] | None = None,
+    fit_tau: bool | None = None,
+    ramp_time: float | None = None,
+) -> FitResult | PronyFit:
     """Least-squares fit of a law's parameters to homogeneous test data (module docstring).
+
+    ``law="prony"`` fits a Prony series to relaxation data instead: it is
+    :func:`~hyperfem.materials.prony_fit.fit_prony` (``data`` a
+    :class:`~hyperfem.materials.prony_fit.RelaxationCurve` or its CSV path; ``terms``, ``tau``,
+    ``fit_tau``, ``ramp_time``, ``weighting``, ``max_iterations``), returning a
+    :class:`~hyperfem.materials.prony_fit.PronyFit`.
 
     Args:
         law: One of :data:`FIT_LAWS`.
-        data: Curves by mode (:func:`read_curves`), a sequence of :class:`Curve`, or a CSV path.
+        data: Curves by mode (:func:`read_curves`), a sequence of :class:`Curve`, or a CSV path
+            (``prony``: relaxation data).
         terms: Number of terms of ``ogden`` and ``reduced_polynomial`` (default 3).
         modes: The modes to fit (default: every mode of the data).
         bulk_modulus: Fixed :math:`K` (data stress unit): a compressible fit. Without it the fit
@@ -821,16 +880,39 @@ def fit(
         volumetric: The volumetric law :math:`U(J)` of a compressible fit and of the material.
         weighting: ``"relative"`` (default) or ``"absolute"`` residuals.
         initial: Start values by parameter name (those not given: the default start); one start only.
-        max_iterations: Levenberg–Marquardt iterations per start; 0 evaluates the start (e.g. published
-            parameters given as ``initial``) without fitting.
+        max_iterations: Levenberg–Marquardt iterations per start (default 500; ``prony``: 200); 0
+            evaluates the start (e.g. published parameters given as ``initial``) without fitting.
+        tau: ``prony`` only: given relaxation times (s).
+        fit_tau: ``prony`` only: fit the relaxation times (default: when ``tau`` is not given).
+        ramp_time: ``prony`` only: the ramp duration of a CSV path (s).
 
     Returns:
-        The :class:`FitResult`.
+        The :class:`FitResult` (``prony``: a :class:`~hyperfem.materials.prony_fit.PronyFit`).
 
     Raises:
         ParameterError: Unknown law, mode or weighting, terms for a law without terms, a compressible
             fit without K or volumetric data, volumetric data in an incompressible fit.
     """
+    if law == "prony":
+        from hyperfem.materials.prony_fit import fit_prony
+
+        elastic_only = {"modes": modes, "bulk_modulus": bulk_modulus, "initial": initial,
+                        "volumetric": None if volumetric == "log" else volumetric}
+        given = [k for k, v in elastic_only.items() if v is not None]
+        if given:
+            raise ParameterError(f"fit: {given[0]} is an option of the hyperelastic laws, not of prony "
+                                 "(relaxation data: terms, tau, fit_tau, ramp_time, weighting)")
+        if isinstance(data, Mapping) or (isinstance(data, Sequence) and not isinstance(data, str)):
+            raise ParameterError("fit: prony fits relaxation data (a RelaxationCurve or a CSV with time_s), "
+                                 "not hyperelastic curves")
+        return fit_prony(data, terms=terms, tau=tau, fit_tau=fit_tau, ramp_time=ramp_time, weighting=weighting,
+                         max_iterations=200 if max_iterations is None else max_iterations)
+    relaxation_only = {"tau": tau, "fit_tau": fit_tau, "ramp_time": ramp_time}
+    given = [k for k, v in relaxation_only.items() if v is not None]
+    if given and law in _MODELS:
+        raise ParameterError(f"fit: {given[0]} is an option of law 'prony' (relaxation data), not of {law}")
+    if max_iterations is None:
+        max_iterations = 500
     if law not in _MODELS:
         raise ParameterError(f"fit: unknown law {law!r}{_did_you_mean(str(law), FIT_LAWS)}; "
                              f"laws: {', '.join(FIT_LAWS)}")

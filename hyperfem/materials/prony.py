@@ -39,7 +39,7 @@ import numpy as np
 from hyperfem.errors import ParameterError
 from hyperfem.validation import is_finite_number
 
-__all__ = ["PronySeries"]
+__all__ = ["PronySeries", "ramp_and_hold_factors"]
 
 
 def _as_tuple(values: object, name: str, where: str) -> tuple[float, ...]:
@@ -147,12 +147,33 @@ class PronySeries:
         """
         if not (is_finite_number(t_ramp) and t_ramp > 0.0):
             raise ParameterError(f"PronySeries.ramp_and_hold: t_ramp must be a finite number > 0, got {t_ramp!r}")
-        t = np.asarray(t, dtype=float)
-        s = np.minimum(t, t_ramp)
-        hold = np.maximum(t - t_ramp, 0.0)
-        out = np.full(t.shape, self.g_inf)
-        for gi, ti in zip(self.g, self.tau, strict=True):
-            x = s / ti
-            a = np.where(x > 0.0, -np.expm1(-x) / np.where(x > 0.0, x, 1.0), 1.0)
-            out = out + gi * a * np.exp(-hold / ti)
-        return float(out) if out.ndim == 0 else out
+        times = np.asarray(t, dtype=float)
+        out = self.g_inf + ramp_and_hold_factors(times.reshape(-1), t_ramp, self.tau) @ np.asarray(self.g)
+        return float(out[0]) if times.ndim == 0 else out.reshape(times.shape)
+
+
+def ramp_and_hold_factors(
+    t: np.ndarray | Sequence[float], t_ramp: float, tau: np.ndarray | Sequence[float]
+) -> np.ndarray:
+    r"""Each term's factor :math:`a_i(\min(t, t_r))\,e^{-\max(t - t_r, 0)/\tau_i}` of :meth:`PronySeries.ramp_and_hold`.
+
+    The stress of a ramp over :math:`[0, t_r]` then held is
+    :math:`E_0\varepsilon(t)\,[g_\infty + \sum_i g_i A_{ni}]` with :math:`A` this matrix:
+    linear in :math:`g_\infty` and the :math:`g_i` for given :math:`\tau_i`, which is how
+    :func:`~hyperfem.materials.prony_fit.fit_prony` fits them. :math:`t_r = 0` is a step
+    of strain (:math:`a_i = 1`: :math:`A_{ni} = e^{-t_n/\tau_i}`).
+
+    Args:
+        t: Times :math:`\ge 0`, shape ``(n,)``.
+        t_ramp: Ramp duration :math:`t_r \ge 0`.
+        tau: Relaxation times :math:`\tau_i > 0`, shape ``(N,)``.
+
+    Returns:
+        The factors, shape ``(n, N)``.
+    """
+    times = np.asarray(t, dtype=float).reshape(-1, 1)
+    taus = np.asarray(tau, dtype=float).reshape(1, -1)
+    x = np.minimum(times, t_ramp) / taus
+    positive = x > 0.0
+    a = np.where(positive, -np.expm1(-x) / np.where(positive, x, 1.0), 1.0)
+    return a * np.exp(-np.maximum(times - t_ramp, 0.0) / taus)
