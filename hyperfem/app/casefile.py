@@ -173,7 +173,6 @@ def check_case(data: Mapping, source: str | Path = "<case>", *, output: str | Pa
         mesh = sections.check_mesh_table(top["mesh"], source)
         solver = sections.check_solver(top.get("solver", {}))
         output_spec = sections.check_output(top.get("output", {}), name, output, stepping, bcs, fibres, materials)
-        sections.check_viscoelastic_output(materials, mixed, output_spec)
         return Case(
             source=source,
             name=name,

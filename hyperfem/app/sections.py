@@ -86,7 +86,6 @@ __all__ = [
     "check_profile",
     "check_solver",
     "check_stepping",
-    "check_viscoelastic_output",
     "check_viscoelastic_use",
 ]
 
@@ -1025,24 +1024,6 @@ def check_viscoelastic_use(materials: Sequence[MaterialSpec], stepping: Stepping
                 f"stepping.end: a viscoelastic material ({m.key}) needs time to run forward, end > 0, "
                 f"got {stepping.end!r}"
             )
-
-
-def check_viscoelastic_output(materials: Sequence[MaterialSpec], mixed: bool, output: OutputSpec) -> None:
-    """Stress fields of the three-field problem need SplitEnergy materials
-    (:func:`hyperfem.simulation.measures.cauchy_stress`): refused for a viscoelastic one."""
-    visco = [m for m in materials if m.viscoelastic is not None]
-    if not (mixed and visco):
-        return
-    asked = [(f"output.fields: {f}", f) for f in output.fields if f in ("cauchy_stress", "von_mises")]
-    if output.render is not None and output.render.scalars in ("cauchy_stress", "von_mises"):
-        asked.append((f"output.render.scalars: {output.render.scalars}", output.render.scalars))
-    if asked:
-        where, _ = asked[0]
-        raise CaseFileError(
-            f"{where} is not written for a viscoelastic material ({visco[0].key}) with formulation = \"mixed\" "
-            "yet (the stress fields of the three-field problem take SplitEnergy materials); leave it out or use "
-            "formulation = \"displacement\""
-        )
 
 
 def check_materials(

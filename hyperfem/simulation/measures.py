@@ -35,6 +35,7 @@ from mpi4py import MPI
 from hyperfem.errors import ParameterError
 from hyperfem.io.probes import PointProbe
 from hyperfem.kinematics import deformation_gradient
+from hyperfem.materials.viscoelastic import Viscoelastic
 from hyperfem.problem.mixed import MixedHyperelasticProblem, SplitEnergy
 from hyperfem.simulation.outputs import VTX, Output
 from hyperfem.simulation.reactions import ReactionForce
@@ -216,13 +217,17 @@ def cauchy_stress(
     r"""Cauchy stress :math:`\sigma = J^{-1} P F^T`, :math:`P = \partial W/\partial F`, per region.
 
     For the three-field problem :math:`W = \psi_\text{iso}(F) + U(\theta) + p\,(\det F - \theta)`
-    at the problem's :math:`p, \theta` (the stress of the mixed solution);
+    at the problem's :math:`p, \theta` (the stress of the mixed solution; a
+    :class:`~hyperfem.materials.viscoelastic.Viscoelastic` material: its
+    :meth:`~hyperfem.materials.viscoelastic.Viscoelastic.mixed_energy`, the isochoric
+    part of the step with its frozen history, so
+    :math:`P = F(\gamma S_\text{iso} + B_n) + p\,\operatorname{cof}F`);
     for the displacement problem :math:`W = \psi(F)`.
 
     Args:
         problem: The displacement or three-field problem.
         materials: Region name (``None``: everywhere) → :class:`~hyperfem.problem.SplitEnergy`
-            or energy ``psi(F)``.
+            (or :class:`~hyperfem.materials.viscoelastic.Viscoelastic`) or energy ``psi(F)``.
 
     Returns:
         Region → UFL tensor, for :class:`CellVTX`.
@@ -232,8 +237,10 @@ def cauchy_stress(
     out = {}
     for region, material in materials.items():
         if mixed is not None:
-            if not isinstance(material, SplitEnergy):
-                raise ParameterError(f"cauchy_stress: the three-field problem needs SplitEnergy materials ({region!r})")
+            if not isinstance(material, (SplitEnergy, Viscoelastic)):
+                raise ParameterError(
+                    f"cauchy_stress: the three-field problem needs SplitEnergy or Viscoelastic materials ({region!r})"
+                )
             W = material.mixed_energy(F, mixed.p, mixed.theta)
         else:
             W = material.energy(F) if isinstance(material, SplitEnergy) else material(F)
