@@ -24,6 +24,9 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).
 * :class:`ContactField` (:mod:`~hyperfem.contact.field`): the nodal contact
   force, traction and gap of every contact as a VTX series for ParaView.
+* Under generalized-:math:`\alpha` the contact force is interpolated between
+  the ends of a step like the internal forces (:class:`ForceInterpolation`,
+  :mod:`~hyperfem.contact.interpolation`).
 * :mod:`~hyperfem.contact.barrier` (the nodal barrier function),
   :mod:`~hyperfem.contact.defaults` (:math:`\hat d`, :math:`\kappa`),
   :mod:`~hyperfem.contact.nodes` (contact nodes), :mod:`~hyperfem.contact.settings`
@@ -48,6 +51,7 @@ from hyperfem.contact.ccd import (
 )
 from hyperfem.contact.cylinder import CylinderBarrier, CylinderContact
 from hyperfem.contact.field import ContactField
+from hyperfem.contact.interpolation import ForceInterpolation
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, default_dhat, default_stiffness
 from hyperfem.contact.nodes import BoundaryNodes, boundary_nodes, facet_size
 from hyperfem.contact.nodal import NodalBarrier
@@ -70,6 +74,7 @@ __all__ = [
     "ContactField",
     "ContactSurface",
     "Cylinder",
+    "ForceInterpolation",
     "CylinderBarrier",
     "CylinderContact",
     "MeshBarrier",

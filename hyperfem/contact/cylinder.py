@@ -134,9 +134,9 @@ class CylinderBarrier(SphereBarrier):
         self.projector = contact.obstacle.projector
         super().__init__(contact, problem)  # type: ignore[arg-type, unused-ignore]  # the sphere's fields: boundary, radius, ...
 
-    def update(self, t: float) -> None:
-        """Move (and turn) the cylinder to time (load factor) ``t``: its axis point and projector."""
-        super().update(t)
+    def _place(self, time: float) -> None:
+        """Move (and turn) the cylinder to the obstacle time ``time``: its axis point and projector."""
+        super()._place(time)
         self.projector = self.obstacle.projector_at(self.time)  # type: ignore[attr-defined]
         if hasattr(self, "step_filter"):
             self.step_filter.projector = self.projector

@@ -86,6 +86,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from hyperfem.contact.barrier import require_ipctk
+from hyperfem.contact.interpolation import ForceInterpolation
 from hyperfem.contact.obstacles import obstacle_time
 from hyperfem.contact.settings import check_dhat_fits
 from hyperfem.contact.surface import ContactSurface
@@ -289,14 +290,24 @@ class MeshBarrier:
         self._friction = ipctk.FrictionPotential(self.friction_epsilon) if self.mu > 0.0 else None
         self._lagged: tuple[np.ndarray, Any] | None = None
         self._pending: tuple[np.ndarray, Any] | None = None
+        self._interpolation = ForceInterpolation(problem, self._gradient_at, self.comm)
         self._check_start()
 
     # -- states -------------------------------------------------------------
-    def update(self, t: float) -> None:
-        """Move the tool (if any) to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`)."""
-        self.time = obstacle_time(self.problem, t)
+    def _place(self, time: float) -> None:
+        """Put the tool (if any) where it is at the obstacle time ``time``."""
+        self.time = float(time)
         if self.tool is not None:
             self._tool_now = self.tool.vertices(self.time)
+
+    def update(self, t: float) -> None:
+        """Move the tool (if any) to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`).
+
+        At the start of a generalized-:math:`\alpha` step the contact force of the step's start state is taken
+        first, with the tool and the friction's lag of that state (:mod:`~hyperfem.contact.interpolation`).
+        """
+        self._interpolation.begin()
+        self._place(obstacle_time(self.problem, t))
         self._cache = None
         self._tangent_at = None
         self._project = False
@@ -381,7 +392,9 @@ class MeshBarrier:
             return float("inf")
         value = float(self.potential(collisions, self.mesh, _f(V))) if len(collisions) else 0.0
         value += self.friction_energy(u)
-        return value if self.comm.rank == 0 else 0.0
+        # Interpolated during a generalized-alpha step (hyperfem.contact.interpolation): the frozen force's linear
+        # term is each rank's owned rows, the barrier rank 0's.
+        return self._interpolation.energy(value if self.comm.rank == 0 else 0.0, u)
 
     def _gradient_full(self, u: np.ndarray) -> np.ndarray:
         V = self.vertices(u)
@@ -390,12 +403,28 @@ class MeshBarrier:
             return np.zeros(V.size)
         return np.asarray(self.potential.gradient(collisions, self.mesh, _f(V))).ravel()
 
-    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r""":math:`\partial\kappa B/\partial u` at this rank's owned surface nodes: ``(dofs, values)``, ``(m, 3)``."""
+    def _own_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The barrier's and the friction's gradient at this rank's owned surface nodes, not interpolated."""
         g = self._gradient_full(u)
         if self._friction is not None:
             g = g + self._friction_gradient(u)
         return self.surface.dofs, g.reshape(-1, 3)[self.surface.rows]
+
+    def _gradient_at(self, u: np.ndarray, time: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_own_gradient` with the tool placed at ``time``; placed back after (collective)."""
+        now = self.time
+        self._place(time)
+        try:
+            return self._own_gradient(u)
+        finally:
+            self._place(now)
+
+    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`\partial\kappa B/\partial u` at this rank's owned surface nodes: ``(dofs, values)``, ``(m, 3)``.
+
+        Interpolated during a generalized-:math:`\alpha` step (:mod:`~hyperfem.contact.interpolation`).
+        """
+        return self._interpolation.gradient(*self._own_gradient(u))
 
     def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """No node blocks: the Hessian couples nodes and comes from :meth:`coupled_hessian`."""
@@ -426,7 +455,8 @@ class MeshBarrier:
             H = H + self._friction.hessian(slip[0], self.mesh, slip[1], method.CLAMP)  # type: ignore[union-attr, unused-ignore]
         H = H.tocoo()
         keep = self._own[H.row] & ~self._fixed[H.row] & ~self._fixed[H.col] & (H.data != 0.0)
-        return self._global[H.row[keep]], self._global[H.col[keep]], np.asarray(H.data[keep], dtype=float)
+        values = np.asarray(H.data[keep], dtype=float) * self._interpolation.weight  # 1 - alpha_f in a g-alpha step
+        return self._global[H.row[keep]], self._global[H.col[keep]], values
 
     def carried(self, u: np.ndarray, t_from: float) -> tuple[np.ndarray, np.ndarray]:
         r"""This rank's surface nodes the tool's move from ``t_from`` to now would overrun: ``(dofs, increments)``.

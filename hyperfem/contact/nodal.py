@@ -58,6 +58,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from hyperfem.contact.barrier import barrier, barrier_derivatives
+from hyperfem.contact.interpolation import ForceInterpolation
 from hyperfem.contact.nodes import BoundaryNodes
 from hyperfem.contact.obstacles import obstacle_time
 from hyperfem.errors import ParameterError
@@ -190,26 +191,72 @@ class NodalBarrier:
         blocks = ml[:, None, None] * (g[:, None, None] * P + dg[:, None, None] * np.einsum("mi,mj->mij", w, w))
         return self.nodes.dofs[rows], blocks
 
-    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r"""The barrier's :math:`\kappa b'(d_a)\nabla d_a` at the active nodes, and the friction's (if any)."""
+    _force_interpolation: ForceInterpolation | None = None
+
+    def _interpolation(self) -> ForceInterpolation:
+        r"""The generalized-:math:`\alpha` weights of this contact (:mod:`~hyperfem.contact.interpolation`)."""
+        if self._force_interpolation is None:
+            self._force_interpolation = ForceInterpolation(self.problem, self._gradient_at)
+        return self._force_interpolation
+
+    def _place(self, time: float) -> None:
+        """Put the obstacle where it is at the obstacle time ``time`` (sets :attr:`time`; the lag is left alone)."""
+        raise NotImplementedError
+
+    def update(self, t: float) -> None:
+        """Move the obstacle to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`).
+
+        At the start of a generalized-:math:`\alpha` step the contact force of the step's start state is taken
+        first, with the obstacle and the friction's lag of that state (:mod:`~hyperfem.contact.interpolation`).
+        """
+        self._interpolation().begin()
+        self._place(obstacle_time(self.problem, t))
+        self._refresh_lag()
+
+    def _own_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The barrier's gradient and the friction's (if any), not interpolated."""
         dofs, values = self._barrier_gradient(u)
         if self.mu <= 0.0:
             return dofs, values
         fdofs, fvalues = self.friction_gradient(u)
         return np.concatenate([dofs, fdofs]), np.concatenate([values, fvalues])
 
+    def _gradient_at(self, u: np.ndarray, time: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_own_gradient` with the obstacle placed at ``time``; placed back after."""
+        now = self.time
+        self._place(time)
+        try:
+            return self._own_gradient(u)
+        finally:
+            self._place(now)
+
+    def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""The barrier's :math:`\kappa b'(d_a)\nabla d_a` at the active nodes, and the friction's (if any).
+
+        Interpolated during a generalized-:math:`\alpha` step (:mod:`~hyperfem.contact.interpolation`).
+        """
+        return self._interpolation().gradient(*self._own_gradient(u))
+
     def hessian(self, u: np.ndarray, project: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """The barrier's Hessian blocks (PSD-projected unless ``project=False``), and the friction's (if any)."""
+        r"""The barrier's Hessian blocks (PSD-projected unless ``project=False``), and the friction's (if any).
+
+        Times :math:`1 - \alpha_f` during a generalized-:math:`\alpha` step.
+        """
         dofs, blocks = self._barrier_hessian(u, project)
-        if self.mu <= 0.0:
-            return dofs, blocks
-        fdofs, fblocks = self.friction_hessian(u)
-        return np.concatenate([dofs, fdofs]), np.concatenate([blocks, fblocks])
+        if self.mu > 0.0:
+            fdofs, fblocks = self.friction_hessian(u)
+            dofs, blocks = np.concatenate([dofs, fdofs]), np.concatenate([blocks, fblocks])
+        weight = self._interpolation().weight
+        return dofs, blocks if weight == 1.0 else weight * blocks
 
     def energy(self, u: np.ndarray) -> float:
-        r"""This rank's :math:`\kappa\sum_a b(d_a)` (``inf`` on or through the obstacle), plus :math:`D`."""
+        r"""This rank's :math:`\kappa\sum_a b(d_a)` (``inf`` on or through the obstacle), plus :math:`D`.
+
+        Interpolated during a generalized-:math:`\alpha` step (:mod:`~hyperfem.contact.interpolation`).
+        """
         value = self.stiffness * float(barrier(self.distances(u), self.dhat).sum())
-        return value + self.friction_energy(u) if self.mu > 0.0 else value
+        value = value + self.friction_energy(u) if self.mu > 0.0 else value
+        return self._interpolation().energy(value, u)
 
     def _active(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rows of the nodes with :math:`d < \\hat d` and their :math:`b'`, :math:`b''`."""

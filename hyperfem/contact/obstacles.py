@@ -63,15 +63,17 @@ __all__ = [
 def obstacle_time(problem: object, t: float) -> float:
     r"""The time a prescribed obstacle is placed at when its barrier is moved to the load time ``t``.
 
-    The barrier :math:`E(u_{n+1})` enters the balance of a step unweighted, as
-    the Dirichlet values do, so a moving obstacle is where it is at the
-    Dirichlet time :math:`t_{n+1}`
+    The barrier keeps the end state :math:`u_{n+1}` of a step out, so a moving
+    obstacle is where it is at the Dirichlet time :math:`t_{n+1}`
     (:meth:`~hyperfem.dynamics.IncrementalProblem.dirichlet_time`); the solver
     moves its energies to the load time, :math:`t_{n+1-\alpha_f}` under
     generalized-:math:`\alpha`. Placed there instead, the obstacle would lag
     :math:`\alpha_f\Delta t` behind the state it keeps out: the end state of a
-    step would be intersection-free against an obstacle that has moved on. The
-    same time for every other problem and scheme.
+    step would be intersection-free against an obstacle that has moved on. Under
+    generalized-:math:`\alpha` its force enters the balance interpolated between
+    the step's ends, :math:`(1-\alpha_f)f_c(u_{n+1}, t_{n+1}) + \alpha_f f_c(u_n, t_n)`
+    (:mod:`~hyperfem.contact.interpolation`). The same time for every other
+    problem and scheme.
     """
     mapping = getattr(problem, "dirichlet_time", None)
     return float(t) if mapping is None else float(mapping(t))

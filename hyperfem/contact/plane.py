@@ -49,7 +49,7 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import HalfSpace, check_plane, obstacle_time
+from hyperfem.contact.obstacles import HalfSpace, check_plane
 from hyperfem.errors import ParameterError
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
@@ -169,11 +169,10 @@ class PlaneBarrier(NodalBarrier):
         self.step_filter = PlaneCollisionFilter(self.nodes.dofs, self.distances, self.normal, contact.safety)
 
     # -- the ExternalEnergy contract ----------------------------------------
-    def update(self, t: float) -> None:
-        """Move the plane to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`)."""
-        self.time = obstacle_time(self.problem, t)
+    def _place(self, time: float) -> None:
+        """Put the plane where it is at the obstacle time ``time``."""
+        self.time = float(time)
         self._origin = self.obstacle.origin(self.time)
-        self._refresh_lag()
 
     def distances(self, u: np.ndarray) -> np.ndarray:
         """Signed distances :math:`d_a` of the owned nodes for the unknown's local array ``u``."""

@@ -47,7 +47,7 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import Ball, check_ball, check_rotation, obstacle_time
+from hyperfem.contact.obstacles import Ball, check_ball, check_rotation
 from hyperfem.errors import ParameterError
 from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
@@ -184,11 +184,10 @@ class SphereBarrier(NodalBarrier):
         )
 
     # -- the ExternalEnergy contract ----------------------------------------
-    def update(self, t: float) -> None:
-        """Move the sphere to time (load factor) ``t`` (:func:`~hyperfem.contact.obstacles.obstacle_time`)."""
-        self.time = obstacle_time(self.problem, t)
+    def _place(self, time: float) -> None:
+        """Put the sphere where it is at the obstacle time ``time``."""
+        self.time = float(time)
         self._center = self.obstacle.origin(self.time)
-        self._refresh_lag()
 
     def _offsets(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:math:`q_a = x_a - c` (projected with :attr:`projector`, if any) and :math:`r_a = |q_a|`, owned nodes."""

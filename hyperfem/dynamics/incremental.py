@@ -362,6 +362,24 @@ class IncrementalProblem:
                 return pair[1]
         return t
 
+    def force_interpolation(self) -> tuple[float, np.ndarray, float] | None:
+        r""":math:`(\alpha_f, w_n, t)` while a generalized-:math:`\alpha` step is being solved, else ``None``.
+
+        Between :meth:`prepare` and :meth:`commit` (or :meth:`restore`) of a scheme with
+        :math:`\alpha_f > 0`. Forces from outside UFL that enter the balance of the step read it to be
+        interpolated like the internal forces (Erlicher et al. 2002): a contact's
+        :math:`(1-\alpha_f)f_c(w_{n+1}) + \alpha_f f_c(w_n)` (:mod:`hyperfem.contact.interpolation`).
+        ``w_n`` is the state array at the step's start (the problem's own; do not modify it); :math:`t` the
+        load time :math:`w_n` was solved at (:math:`t_{n-\alpha_f}` of its step, which :meth:`dirichlet_time`
+        maps to :math:`t_n`; :math:`t_n` itself for the start of a run or after a restore).
+        """
+        af = float(self.integrator.alpha_f)
+        if not af or self._step_times is None:
+            return None
+        accepted = self._accepted_times
+        t = accepted[0] if accepted is not None and accepted[1] == self.t_n else self.t_n
+        return af, self._u_n.x.array, t
+
     def check_solution(self) -> tuple[dict[str, float], str | None]:
         """The base problem's consistency indicators."""
         return self.base.check_solution()
@@ -397,6 +415,7 @@ class IncrementalProblem:
         self.u.x.array[:] = state.u
         self.v.x.array[:] = state.v
         self.a.x.array[:] = state.a
+        self._step_times = None  # no step is being solved (force_interpolation)
         self.base.set_time(state.t)
 
     def prepare(self, dt: float) -> None:
