@@ -689,6 +689,19 @@ def test_turned_cylinder_and_tool_cases_print_and_build_the_rotation(shared_tmp)
     assert plain.contacts[0].rotation is None and model_hash(case) != model_hash(plain)
 
 
+def test_turned_plane_case_prints_and_builds_the_rotation(shared_tmp):
+    """A plane takes ``rotation`` too: the script prints it, the bound plane's normal is turned by the angle at
+    t = 1 (a tilt of 0.02 about y through the bottom's middle, below the block)."""
+    tilt = {"rotation": {"axis": [0.0, 1.0, 0.0], "center": [0.5, 0.5, -5e-4], "angle": 0.02}}
+    case = _checked(shared_tmp, {"type": "plane", "point": [0.0, 0.0, -5e-4], "normal": [0.0, 0.0, 1.0]} | tilt)
+    text = " ".join(script(case).split())
+    assert "rotation=RigidRotation((0.0, 1.0, 0.0), Scaled(linear_profile, 0.02), (0.5, 0.5, -0.0005))" in text
+    compile(script(case), "tilted.py", "exec")
+    built = build(dataclasses.replace(case, output=dataclasses.replace(case.output, directory=str(shared_tmp / "p"))))
+    plane = built.variables["contact"].obstacle
+    assert plane.normal_at(1.0) == pytest.approx([np.sin(0.02), 0.0, np.cos(0.02)], abs=1e-15)
+
+
 @pytest.mark.parametrize(
     "change, expected",
     [
@@ -700,8 +713,8 @@ def test_turned_cylinder_and_tool_cases_print_and_build_the_rotation(shared_tmp)
         (SPHERE | {"rotation": [0.0, 0.0, 1.0]}, "contact[0].rotation: expected a table"),
         (SPHERE | {"center": [0.5, -2.0], "motion": [0.0, 1.0]} | TURNED,
          "contact[0].rotation: a rotation needs a 3D sphere"),
-        ({"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]} | TURNED,
-         "contact[0].rotation: unknown key"),
+        ({"type": "plane", "point": [0.0, -0.1], "normal": [0.0, 1.0]} | TURNED,
+         "contact[0].rotation: a rotation needs a 3D plane"),
     ],
 )
 def test_bad_rotations_name_their_key(shared_tmp, change, expected):

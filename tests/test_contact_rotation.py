@@ -1,9 +1,10 @@
 r"""Rigid obstacles that turn (issue 19: "translation/rotation profiles, as for Dirichlet values"): a ball, a
-cylinder and a triangulated tool with a :class:`~hyperfem.loading.RigidRotation` composed with the translation.
+cylinder, a plane and a triangulated tool with a :class:`~hyperfem.loading.RigidRotation` composed with the translation.
 
 The placement at time :math:`t` is :math:`x = R(\theta(t))(X - c_r) + c_r + f(t)\,m`. Checked: the composition
 against the formula; a roller along :math:`x` turned to :math:`y` while the cube is pressed on it ends where the
-static roller along :math:`y` does; a plate spun in its own plane under the cube equals the static plate; a rough
+static roller along :math:`y` does, and a plane tilted while the cube is pressed on it where the tilted plane
+does; a plate spun in its own plane under the cube equals the static plate; a rough
 ball turned about its own centre drags the node it holds (the friction's slip is relative to the ball's
 surface); bad rotations are refused in one line. 1 rank = 2 ranks.
 """
@@ -19,7 +20,7 @@ from mpi4py import MPI
 ipctk = pytest.importorskip("ipctk")
 
 import hyperfem as hf  # noqa: E402
-from hyperfem.contact import Ball, Cylinder, CylinderContact, SphereContact, ToolContact  # noqa: E402
+from hyperfem.contact import Ball, Cylinder, CylinderContact, PlaneContact, SphereContact, ToolContact  # noqa: E402
 from hyperfem.contact.mesh_barrier import RigidSurface  # noqa: E402
 from hyperfem.errors import ParameterError  # noqa: E402
 from hyperfem.loading import Ramp, RigidRotation, Steady, rotation_matrix  # noqa: E402
@@ -54,7 +55,7 @@ def test_rotation_composes_with_translation():
     np.testing.assert_allclose(spun.origin(0.7), c0, atol=1e-15)
 
 
-def _on_roller(comm, contact: CylinderContact) -> tuple:
+def _on_roller(comm, contact: CylinderContact | PlaneContact) -> tuple:
     problem = _block(comm, n=3, delta=0.05)
     barrier = contact.bind(problem)
     solver = hf.NewtonSolver(problem, TIGHT, external_energies=[barrier])
@@ -107,6 +108,45 @@ def test_turned_roller_one_rank_equals_two_ranks():
     one = _roller_state(MPI.COMM_SELF, _turned_roller()) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     assert _roller_state(comm, _turned_roller()) == pytest.approx(one, rel=1e-10, abs=1e-14)
+
+
+TILT = 0.02
+
+
+def _tilted_plane(turning: bool) -> PlaneContact:
+    """A plane 0.012 below the bottom, tilted by TILT about y through the middle below it (its edge below x = 0 up
+    by 0.01): turned there with the load (``turning``), or placed there from the start."""
+    pivot = (0.5, 0.5, -0.012)
+    if turning:
+        rotation = RigidRotation((0.0, 1.0, 0.0), Ramp(1.0, final=TILT), center=pivot)
+        return PlaneContact("bottom", point=pivot, normal=(0.0, 0.0, 1.0), dhat=1e-3, rotation=rotation)
+    return PlaneContact("bottom", point=pivot, normal=(math.sin(TILT), 0.0, math.cos(TILT)), dhat=1e-3)
+
+
+@pytest.mark.serial  # three solves (4 s on 2 ranks); 1 rank = 2 ranks: test_turned_plane_one_rank_equals_two_ranks
+def test_plane_turned_to_a_tilt_ends_where_the_tilted_plane_is():
+    """The plane tilted by 0.02 about y while the cube is pushed 0.05 down onto it: the force, gap
+    and displacement of the plane placed at that tilt from the start (frictionless: the end state does not depend
+    on the path), to 1e-8; its normal and point follow the rotation; the flat plane ends elsewhere."""
+    turned_plane = _tilted_plane(True)
+    normal = turned_plane.obstacle.normal_at(1.0)
+    np.testing.assert_allclose(normal, [math.sin(TILT), 0.0, math.cos(TILT)], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(turned_plane.obstacle.origin(0.5), (0.5, 0.5, -0.012), rtol=0, atol=1e-15)
+    turned = _roller_state(MPI.COMM_WORLD, turned_plane)
+    placed = _roller_state(MPI.COMM_WORLD, _tilted_plane(False))
+    assert turned == pytest.approx(placed, rel=1e-8, abs=1e-12)
+    assert turned[0] > 1e-3 * turned[2]  # the tilted plane pushes the cube along x too, against its rollers
+    flat = PlaneContact("bottom", point=(0.5, 0.5, -0.012), normal=(0.0, 0.0, 1.0), dhat=1e-3)
+    assert _roller_state(MPI.COMM_WORLD, flat) != pytest.approx(turned, rel=1e-4)
+
+
+def test_turned_plane_one_rank_equals_two_ranks():
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    one = _roller_state(MPI.COMM_SELF, _tilted_plane(True)) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    assert _roller_state(comm, _tilted_plane(True)) == pytest.approx(one, rel=1e-10, abs=1e-14)
 
 
 def _plate_state(points, rotation) -> list[float]:

@@ -507,6 +507,7 @@ CONTACTS = {
         "normal": Key("numbers", required=True, example=(0.0, 0.0, 1.0),
                       help="the plane's normal, pointing to the body's side (any length > 0)"),
         **_barrier_keys("plane"),
+        "rotation": _rotation_key("plane (it turns the normal)"),
     },
     "sphere": {
         "boundary": _NODE_BOUNDARY,

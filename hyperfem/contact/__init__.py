@@ -10,7 +10,7 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
 * Analytic rigid obstacles, per node (no gathering): :class:`PlaneContact`
   (a half-space), :class:`SphereContact` and :class:`CylinderContact`
   (:mod:`~hyperfem.contact.cylinder`), with a prescribed translation
-  (the ball and cylinder also a rotation, :class:`~hyperfem.loading.RigidRotation`)
+  (each also a rotation, :class:`~hyperfem.loading.RigidRotation`)
   and smoothed Coulomb friction (:mod:`~hyperfem.contact.nodal`,
   :mod:`~hyperfem.contact.plane`, :mod:`~hyperfem.contact.sphere`,
   :mod:`~hyperfem.contact.ccd`, :mod:`~hyperfem.contact.obstacles`).

@@ -17,7 +17,7 @@ through :math:`c(t)` along the unit :math:`a` gives
 :math:`d(x) = |P(x - c(t))| - R`, :math:`P = I - a a^T`. Triangulated tools
 are :class:`~hyperfem.contact.ToolContact`.
 
-**Rotation.** A ball and a cylinder (and a tool,
+**Rotation.** A plane, a ball and a cylinder (and a tool,
 :class:`~hyperfem.contact.mesh_barrier.RigidSurface`) may also turn: a
 :class:`~hyperfem.loading.RigidRotation` (unit axis :math:`\hat a_r`, pivot
 :math:`c_r`, angle :math:`\theta(t)`) is composed with the translation, the
@@ -28,7 +28,8 @@ then travels with the translation:
     x(t) = R\bigl(\theta(t)\,\hat a_r\bigr)(X - c_r) + c_r + f(t)\,m,
 
 so the cylinder's axis point is :math:`c(t) = R(c_0 - c_r) + c_r + f(t)m`
-and its axis :math:`a(t) = R a_0`. A ball turned about its own centre does
+and its axis :math:`a(t) = R a_0`, a plane's point :math:`p(t)` likewise and its
+normal :math:`n(t) = R n_0`. A ball turned about its own centre does
 not change its shape; its surface moves all the same, which matters with
 friction (the slip is taken relative to the obstacle's surface,
 :mod:`~hyperfem.contact.nodal`). :meth:`Ball.transfer` maps points rigidly
@@ -172,23 +173,28 @@ def check_plane(
 
 @dataclass(frozen=True)
 class HalfSpace(RigidPlacement):
-    r"""A rigid half-space with outward normal ``normal`` through ``point``, translated by ``profile(t)·motion``.
+    r"""A rigid half-space with outward normal ``normal`` through ``point``, turned by ``rotation`` and translated by
+    ``profile(t)·motion``.
 
     Attributes:
-        point: A point :math:`p_0` of the plane at :math:`t` with ``profile(t) = 0``.
+        point: A point :math:`p_0` of the plane at :math:`t` with ``profile(t) = 0`` and no rotation.
         normal: The outward normal (normalised by :attr:`unit_normal`), pointing to the body's side.
         motion: The translation :math:`m` (``None``: the plane does not move).
         profile: :math:`f(t)` of the translation (default: the load factor).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` composed with the translation: it turns the normal,
+            :math:`n(t) = R(t)\,n_0`, and the point about the pivot (module docstring; ``None``: it does not turn).
     """
 
     point: Sequence[float]
     normal: Sequence[float]
     motion: Sequence[float] | None = None
     profile: Callable[[float], float] = linear_profile
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         p, n, m = check_plane(self.point, self.normal, self.motion, "HalfSpace")
         check_callable(self.profile, "HalfSpace", "profile")
+        check_rotation(self.rotation, len(p), "HalfSpace")
         object.__setattr__(self, "point", p)
         object.__setattr__(self, "normal", n)
         object.__setattr__(self, "motion", m)
@@ -204,13 +210,18 @@ class HalfSpace(RigidPlacement):
         n = np.asarray(self.normal, dtype=float)
         return n / np.linalg.norm(n)
 
+    def normal_at(self, t: float) -> np.ndarray:
+        """The unit normal :math:`n(t) = R(t)\\,n_0` at time (load factor) ``t``."""
+        R = self.turn(t)
+        return self.unit_normal if R is None else R @ self.unit_normal
+
     def origin(self, t: float) -> np.ndarray:
-        """The point :math:`p(t) = p_0 + f(t)\\,m` of the plane at time (load factor) ``t``."""
+        """The point :math:`p(t) = R(t)(p_0 - c_r) + c_r + f(t)\\,m` of the plane at time (load factor) ``t``."""
         return self.place(self.point, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
-        r""":math:`(x - p(t))\cdot n` of points ``x`` (shape ``(m, dim)``): positive on the body's side."""
-        return (np.asarray(x, dtype=float) - self.origin(t)) @ self.unit_normal
+        r""":math:`(x - p(t))\cdot n(t)` of points ``x`` (shape ``(m, dim)``): positive on the body's side."""
+        return (np.asarray(x, dtype=float) - self.origin(t)) @ self.normal_at(t)
 
 
 def check_ball(

@@ -2,12 +2,12 @@ r"""Frictionless contact of a body with a rigid plane: the IPC barrier of its bo
 
 :class:`PlaneContact` names the boundary that may touch and the obstacle (a
 :class:`~hyperfem.contact.obstacles.HalfSpace` with an optional prescribed
-translation); :meth:`PlaneContact.bind` gives the :class:`PlaneBarrier` of a
+translation and rotation); :meth:`PlaneContact.bind` gives the :class:`PlaneBarrier` of a
 problem, the term
 
 .. math::
     \kappa B(u) = \kappa \sum_a b\bigl(d_a(u)\bigr), \qquad
-    d_a(u) = (X_a + u_a - p(t))\cdot n,
+    d_a(u) = (X_a + u_a - p(t))\cdot n(t),
 
 over the contact nodes :math:`a` (:mod:`~hyperfem.contact.nodes`), with the
 IPC barrier :math:`b` of width :math:`\hat d` (:mod:`~hyperfem.contact.barrier`)
@@ -49,8 +49,9 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import HalfSpace, check_plane
+from hyperfem.contact.obstacles import HalfSpace, check_plane, check_rotation
 from hyperfem.errors import ParameterError
+from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_name
@@ -77,6 +78,9 @@ class PlaneContact:
             step as in IPC (:mod:`~hyperfem.contact.nodal`).
         friction_epsilon: The slip length :math:`\epsilon > 0` below which a node sticks elastically
             (``None``: :math:`0.1\,\hat d`).
+        rotation: A :class:`~hyperfem.loading.RigidRotation` of the plane (3D), composed with the translation:
+            the normal turns, :math:`n(t) = R(t)\,n_0`, the point about the pivot
+            (:mod:`~hyperfem.contact.obstacles`; ``None``: it does not turn).
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` is not installed
@@ -94,11 +98,13 @@ class PlaneContact:
     name: str = "contact"
     friction: float = 0.0
     friction_epsilon: float | None = None
+    rotation: RigidRotation | None = None
 
     def __post_init__(self) -> None:
         check_name(self.boundary, "boundary", "PlaneContact")
         where = f"PlaneContact on {self.boundary!r}"
         p, n, m = check_plane(self.point, self.normal, self.motion, where)
+        check_rotation(self.rotation, len(p), where)
         object.__setattr__(self, "point", p)
         object.__setattr__(self, "normal", n)
         object.__setattr__(self, "motion", m)
@@ -110,7 +116,7 @@ class PlaneContact:
     @property
     def obstacle(self) -> HalfSpace:
         """The plane as a :class:`~hyperfem.contact.obstacles.HalfSpace`."""
-        return HalfSpace(self.point, self.normal, self.motion, self.profile)
+        return HalfSpace(self.point, self.normal, self.motion, self.profile, self.rotation)
 
     def bind(self, problem: SolidProblem) -> PlaneBarrier:
         """The barrier of this contact on ``problem`` (collective).
@@ -170,9 +176,13 @@ class PlaneBarrier(NodalBarrier):
 
     # -- the ExternalEnergy contract ----------------------------------------
     def _place(self, time: float) -> None:
-        """Put the plane where it is at the obstacle time ``time``."""
+        """Put (and turn) the plane where it is at the obstacle time ``time``: its point and normal."""
         self.time = float(time)
         self._origin = self.obstacle.origin(self.time)
+        if self.obstacle.rotation is not None:
+            self.normal = self.obstacle.normal_at(self.time)
+            if hasattr(self, "step_filter"):
+                self.step_filter.normal = self.normal
 
     def distances(self, u: np.ndarray) -> np.ndarray:
         """Signed distances :math:`d_a` of the owned nodes for the unknown's local array ``u``."""
