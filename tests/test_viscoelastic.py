@@ -595,5 +595,8 @@ def test_relaxation_demo(shared_tmp):
     small, large = result["relaxed_fractions"]
     assert small == pytest.approx(result["closed_relaxed_fraction"], abs=1e-3)
     assert 0.2 < result["large_strain_deviation"] < 0.4 and large == pytest.approx(small, abs=0.05)
+    # the small-strain run fitted back as relaxation data: measured g (0.3013, 0.1999), tau (0.0999, 1.0079) s
+    np.testing.assert_allclose(result["fitted_prony"]["g"], [0.3, 0.2], atol=5e-3)
+    np.testing.assert_allclose(result["fitted_prony"]["tau"], [0.1, 1.0], rtol=3e-2)
     MPI.COMM_WORLD.Barrier()  # rank 0 writes the files
     assert (shared_tmp / "relaxation.png").stat().st_size > 0 and (shared_tmp / "relaxation.json").exists()
