@@ -75,7 +75,13 @@ and each step makes
         + p\,(J - \theta)\,dX
 
 stationary (:meth:`Viscoelastic.mixed_energy`); the history sits on the
-problem's volume rule and moves as above.
+problem's volume rule and moves as above. Its stress fields
+(:func:`hyperfem.simulation.measures.cauchy_stress`, case-file ``cauchy_stress`` and
+``von_mises``) are the derivative of that density at the problem's :math:`p, \theta`.
+
+**Parameters from a test.** :func:`hyperfem.materials.fit` with ``law="prony"``
+(:mod:`~hyperfem.materials.prony_fit`, ``hyperfem fit RELAX.csv --law prony``) fits the
+:class:`PronySeries` to relaxation data (the stress at a held strain, or :math:`g(t)`).
 
 Supported stages: quasi-static stepping (:func:`~hyperfem.solver.solve_quasistatic`,
 :class:`~hyperfem.simulation.Simulation`, with cut-backs, growth and step
