@@ -456,3 +456,20 @@ def test_cli_fit_prony_json(shared_tmp, capsys):
         err = capsys.readouterr().err
         assert err.startswith("hyperfem: error: fit: ") and "fit them with law 'prony'" in err
         assert err.count("\n") == 1
+
+
+@pytest.mark.parametrize("name", ["negative time", "too few points", "relaxes to zero"])
+def test_cli_fit_prony_errors_are_one_line(name, shared_tmp, capsys):
+    text, kwargs, expected = RELAXATION_ERRORS[name]
+    path = shared_tmp / f"cli_{name.replace(' ', '_')}.csv"
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(text)
+    MPI.COMM_WORLD.Barrier()
+    with pytest.raises(SystemExit) as info:
+        run(lambda: dispatch(["fit", str(path), "--law", "prony", "--terms", str(kwargs.get("terms", 3))]))
+    assert info.value.code == 1
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert err.startswith("hyperfem: error: fit: ") and expected in err and err.count("\n") == 1, err
+    else:
+        assert err == ""
