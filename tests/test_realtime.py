@@ -264,3 +264,53 @@ def test_benchmark_smoke_agrees_with_the_ordinary_path():
     a, b = np.array(runs["cg-icc"]["test_point"]), np.array(runs["newton-solver"]["test_point"])
     assert np.linalg.norm(a - b) < 1e-6 * np.linalg.norm(b)
     assert "largest_mesh_at_target" in rows[-1]
+
+
+# -- contact (issue 19: tool on tissue in real time) -------------------------------------------------------------------
+def _tissue(comm=MPI.COMM_WORLD):
+    """A soft 1 x 1 x 0.25 slab (4 x 4 x 1 boxes) clamped at the bottom, backward Euler, and a ball tool 2 mm above the
+    top moved by (0.2, 0, -0.08) over 0.2 s (it indents while dragging)."""
+    from hyperfem.contact import SphereContact
+
+    mesh = dmesh.create_box(comm, [[0.0, 0.0, 0.0], [1.0, 1.0, 0.25]], [4, 4, 1], dmesh.CellType.tetrahedron)
+    domain = hf.Domain.from_locators(
+        mesh, {"bottom": lambda x: np.isclose(x[2], 0.0), "top": lambda x: np.isclose(x[2], 0.25)}
+    )
+    params = hf.materials.LameParameters.from_youngs(E=1e4, nu=0.45)
+    base = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params), bcs=[hf.Clamp("bottom")])
+    problem = dyn.IncrementalProblem(base, dyn.BackwardEuler(), dyn.MassDensity(1000.0))
+    tool = SphereContact("top", center=(0.4, 0.5, 0.25 + 0.3 + 2e-3), radius=0.3, dhat=5e-3, motion=(0.2, 0.0, -0.08),
+                         profile=lambda t: t / 0.2).bind(problem)
+    return problem, tool
+
+
+def test_realtime_contact_equals_the_ordinary_path():
+    """A ball tool indenting and dragging across a soft slab (6 steps of 1/30 s): with a large budget the real-time
+    stepper with the barrier lands on the states of the ordinary path (Simulation + NewtonSolver with the same
+    contact) to 1e-7; every step ends intersection-free; the tool pushes."""
+    from hyperfem.simulation import Simulation
+
+    steps = 6
+    reference, tool_ref = _tissue()
+    solver = hf.NewtonSolver(reference, TIGHT, external_energies=[tool_ref])
+    Simulation(reference, solver, dyn.TimeStepping(dt=DT, t_end=steps * DT), []).run()
+    problem, tool = _tissue()
+    stepper = RealtimeStepper(problem, DT, 30, config="mumps", rtol=1e-11, atol=1e-12, contacts=[tool])
+    records = stepper.run(steps)
+    assert all(r.converged and r.min_distance > 0.0 for r in records)
+    assert tool.force()[2] < 0.0 and tool.active_count() > 0  # the ball above pushes the top down
+    comm = problem.domain.comm
+    assert max_diff(problem.u.x.array, reference.u.x.array, comm) < 1e-7 * scale(reference)
+    np.testing.assert_allclose(tool.force(), tool_ref.force(), rtol=1e-6, atol=1e-9 * abs(tool_ref.force()[2]))
+
+
+def test_realtime_refuses_mesh_contact_in_one_line():
+    pytest.importorskip("ipctk")
+    from hyperfem.contact import ToolContact
+
+    problem, _ = _tissue()
+    plate = np.array([[0.0, 0.0, 0.3], [1.0, 0.0, 0.3], [1.0, 1.0, 0.3]])
+    tool = ToolContact.from_arrays(["top"], plate, np.array([[0, 1, 2]]), dhat=1e-2).bind(problem)
+    with pytest.raises(hf.errors.ParameterError, match="mesh contact couples nodes") as info:
+        RealtimeStepper(problem, DT, contacts=[tool])
+    assert "\n" not in str(info.value)
