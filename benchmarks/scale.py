@@ -42,6 +42,7 @@ import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -73,6 +74,11 @@ def _hand_tuned(problem):
     from hyperfem.solver.linear import LinearSolver, _near_nullspace_hook
 
     return LinearSolver(dict(HAND_TUNED), near_nullspace=_near_nullspace_hook(problem.displacement_space()))
+
+
+def _parse_options(pairs: list[str]) -> dict[str, object]:
+    """``["key=value", ...]`` (``--petsc``) as a PETSc options dictionary (a bare ``key`` means true)."""
+    return dict((p.split("=", 1) if "=" in p else (p, True)) for p in pairs)
 
 
 def _events():
@@ -158,6 +164,10 @@ def single(args) -> None:
         linear = None if forced is None else choose_linear_solver(problem, threshold=forced)
         if args.variant == "hyperfem-hand-tuned":
             linear = _hand_tuned(problem)
+        if args.petsc:
+            base = linear if linear is not None else choose_linear_solver(problem)
+            linear = replace(base, options={**base.options, **_parse_options(args.petsc)})
+            row["petsc"] = args.petsc
         solver = hf.NewtonSolver(problem, linear_solver=linear)
         problem.set_time(1.0)
         setup = time.perf_counter() - t0
@@ -220,11 +230,11 @@ def single(args) -> None:
         print("RESULT " + json.dumps(row), flush=True)
 
 
-def _launch(N, degree, case, variant, ranks, timeout, formulation="displacement"):
+def _launch(N, degree, case, variant, ranks, timeout, formulation="displacement", petsc=()):
     mpiexec = Path(sys.executable).parent / "mpiexec"
     mpiexec = str(mpiexec) if mpiexec.exists() else "mpiexec"
     cmd = [sys.executable, __file__, "--single", str(N), "--degree", str(degree), "--case", case, "--variant", variant,
-           "--formulation", formulation]
+           "--formulation", formulation, *(["--petsc", *petsc] if petsc else [])]
     if ranks > 1:
         cmd = [mpiexec, "-n", str(ranks), *cmd]
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -267,6 +277,11 @@ def main() -> None:
         help="hyperfem (automatic linear solver), with the iterative or direct solver forced, with the hand-tuned "
         "expert set-up of issue 20 (CG + GAMG + rigid modes, PETSc defaults otherwise), plain DOLFINx",
     )
+    p.add_argument(
+        "--petsc", nargs="*", default=[], metavar="KEY=VALUE",
+        help="PETSc options added to a hyperfem variant's linear solver (its 'snes_' options reach SNES), "
+        "e.g. --petsc snes_lag_preconditioner=3 ksp_rtol=1e-4",
+    )
     p.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--variant", default="hyperfem", help=argparse.SUPPRESS)
     args = p.parse_args()
@@ -284,7 +299,8 @@ def main() -> None:
                 approx = 3 * (2 * N * k + 1) * (N * k + 1) ** 2
                 if variant in ("baseline", "hyperfem-direct") and approx > args.max_lu:
                     continue
-                row = _launch(N, args.degree, args.case, variant, ranks, args.timeout, args.formulation)
+                petsc = args.petsc if variant.startswith("hyperfem") else ()
+                row = _launch(N, args.degree, args.case, variant, ranks, args.timeout, args.formulation, petsc)
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 if args.output is not None:

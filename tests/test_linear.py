@@ -8,6 +8,7 @@ and on 2 ranks.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,9 @@ from hyperfem.cases import TEST_POINT, CantileverSpec, bend_load, twist_load
 from hyperfem.io import PointProbe
 from hyperfem.kinematics import isochoric_invariants
 from hyperfem.problem import SplitEnergy, solid_problem
+from hyperfem.solver.inertia import negative_pivots
 from hyperfem.solver.linear import (
+    BLOCKED_TANGENT,
     DIRECT,
     DIRECT_THRESHOLD,
     MIXED_DIRECT_THRESHOLD,
@@ -115,6 +118,31 @@ def test_iterative_equals_direct(load):
             assert rec.linear_iterations > rec.iterations  # Krylov iterations counted
         results.append(PointProbe(problem.domain.mesh, [TEST_POINT])(problem.u)[0])
     np.testing.assert_allclose(results[1], results[0], rtol=1e-8, atol=1e-10)
+
+
+@pytest.mark.parametrize("load", [bend_load, twist_load], ids=["bend-cg", "twist-gmres"])
+def test_blocked_tangent_equals_aij(load):
+    """The iterative path assembles a BAIJ tangent, AMG gets an AIJ copy: same steps as an AIJ tangent."""
+    results, types = [], []
+    for kind in (BLOCKED_TANGENT, None):
+        problem = _beam(load())
+        linear = dataclasses.replace(choose_linear_solver(problem, threshold=0), matrix_kind=kind)
+        solver = hf.NewtonSolver(problem, linear_solver=linear)
+        steps = hf.solve_quasistatic(solver)
+        A, P, _ = solver.snes.getJacobian()
+        types.append((A.getType(), P.getType()))
+        results.append(problem.u.x.array.copy())
+        if kind is not None:  # the copy holds the tangent's values and rigid-body modes
+            D = P.copy()
+            D.axpy(-1.0, A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()))
+            assert D.norm() <= 1e-14 * A.norm() and P.getNearNullSpace()
+            pivots = negative_pivots(A)  # LDL^T of the blocked tangent through an AIJ copy
+            assert pivots == negative_pivots(P) and A.getType().endswith("baij")
+        assert len(steps) >= 1 and all(s.solve.converged for s in steps)
+    assert types[0][0].endswith("baij") and types[0][1].endswith("aij") and not types[0][1].endswith("baij")
+    assert types[1][0] == types[1][1] and not types[1][0].endswith("baij")
+    scale = np.abs(results[1]).max()
+    np.testing.assert_allclose(results[0], results[1], atol=1e-8 * scale)
 
 
 def test_iterative_prescribed_displacement_with_predictor():

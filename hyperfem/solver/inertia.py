@@ -25,11 +25,17 @@ def negative_pivots(A: PETSc.Mat) -> int:
     ``ICNTL(24) = 1`` so that a singular matrix (a state at a critical point)
     still factorises. Dirichlet rows (identity rows) count as positive. Of an
     unsymmetric matrix (a follower load's tangent) one triangle is read. Set up
-    without PETSc's options database.
+    without PETSc's options database. A blocked (BAIJ) tangent is factorised
+    as an AIJ copy (MUMPS has no :math:`LDL^T` of BAIJ).
 
     Raises:
         SolverError: The factorisation failed.
     """
+    blocked = A.getType() in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ)
+    if blocked:
+        copy = PETSc.Mat()
+        A.convert(PETSc.Mat.Type.AIJ, copy)  # into a new matrix: convert(type) alone would convert A in place
+        A = copy
     pc = PETSc.PC().create(A.getComm())
     try:
         pc.setOperators(A, A)
@@ -47,3 +53,5 @@ def negative_pivots(A: PETSc.Mat) -> int:
         raise SolverError(message) from None
     finally:
         pc.destroy()
+        if blocked:
+            A.destroy()

@@ -77,7 +77,14 @@ from hyperfem.solver.filters import (
     inversion_filters,
     resolve_min_jacobian,
 )
-from hyperfem.solver.linear import LinearSolver, ShiftedPreconditioner, choose_linear_solver, describe, pc_setup_seconds
+from hyperfem.solver.linear import (
+    AIJPreconditioner,
+    LinearSolver,
+    ShiftedPreconditioner,
+    choose_linear_solver,
+    describe,
+    pc_setup_seconds,
+)
 from hyperfem.solver.objective import EnergyObjective
 from hyperfem.solver.options import (
     DEFAULT_PETSC_OPTIONS,
@@ -364,6 +371,7 @@ class NewtonSolver:
                 problem.u,
                 bcs=problem.bcs,
                 J=jacobian,
+                kind=self._matrix_kind(),
                 petsc_options_prefix=self.prefix,
                 petsc_options=self.options,
                 **compiler,
@@ -372,19 +380,42 @@ class NewtonSolver:
             clean_options(self.prefix, self.options)
             raise ParameterError(f"NewtonSolver: {describe_option_error(exc, petsc_options or {})}") from None
 
-    def _attach_linear_solver(self, compiler: dict[str, Any]) -> ShiftedPreconditioner | None:
-        """Apply the linear solver's hooks; its shifted preconditioner, if it has a shift."""
+    def _matrix_kind(self) -> str | None:
+        """The tangent's matrix type: the linear solver's :attr:`~LinearSolver.matrix_kind` where it applies.
+
+        A blocked tangent needs a blocked displacement space (not the mixed
+        one), and neither a preconditioner shift (added to an AIJ copy) nor
+        external energies (their Hessians add entries outside DOLFINx's
+        sparsity pattern, one scalar at a time).
+        """
         linear = self.linear_solver
+        plain = self.problem.displacement_space() is self.problem.u.function_space
+        if linear.matrix_kind is None or not plain or linear.preconditioner_shift is not None or self.external:
+            return None
+        return linear.matrix_kind
+
+    def _attach_linear_solver(
+        self, compiler: dict[str, Any]
+    ) -> ShiftedPreconditioner | AIJPreconditioner | None:
+        """Apply the linear solver's hooks; the preconditioning matrix that differs from the tangent, if any.
+
+        That is the tangent plus a shift (:class:`ShiftedPreconditioner`), or
+        the AIJ copy of a blocked tangent (:class:`AIJPreconditioner`), else ``None``.
+        """
+        linear = self.linear_solver
+        A = self._nlp.A
         if linear.near_nullspace is not None:
-            linear.near_nullspace(self._nlp.A)
+            linear.near_nullspace(A)
         if linear.configure is not None:
             linear.configure(self.snes.getKSP())
-        if linear.preconditioner_shift is None:
-            return None
-        return ShiftedPreconditioner(self._nlp.A, fem.form(linear.preconditioner_shift, **compiler))
+        if linear.preconditioner_shift is not None:
+            return ShiftedPreconditioner(A, fem.form(linear.preconditioner_shift, **compiler))
+        if A.getType() in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ):
+            return AIJPreconditioner(cast(fem.Form, self._nlp.J))  # one form: the blocked path has one field
+        return None
 
     def _wire_assembly(self, me: _SolverRef) -> None:
-        """The monitor, the state hooks before each assembly, and the shifted preconditioning matrix."""
+        """The monitor, the state hooks before each assembly, and the separate preconditioning matrix."""
         self.snes.setMonitor(lambda _snes, _it, norm: me()._norms.append(float(norm)))
         if self.state_hooks or self.external:
             self._hook_assembly(me)
@@ -413,11 +444,11 @@ class NewtonSolver:
         snes.setJacobian(hooked_jacobian, self._nlp.A, self._nlp.P_mat)
 
     def _shift_jacobian(self, me: _SolverRef) -> None:
-        """Assemble the tangent, then set the preconditioning matrix to it plus the shift."""
+        """Assemble the tangent, then update the preconditioning matrix from it (plus the shift, or its AIJ copy)."""
         snes = self.snes
         _, _, (jacobian, _, jacobian_kw) = cast(tuple[PETSc.Mat, PETSc.Mat, _Callback], snes.getJacobian())
         preconditioner = self._preconditioner  # holds no reference to the solver
-        assert preconditioner is not None  # _wire_assembly calls this only when there is a shift
+        assert preconditioner is not None  # _wire_assembly calls this only when there is one
 
         def shifted_jacobian(snes_: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
             jacobian(snes_, x, A, None, **jacobian_kw)
