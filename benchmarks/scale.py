@@ -70,10 +70,15 @@ HAND_TUNED = {
 
 
 def _hand_tuned(problem):
-    """hyperfem's NewtonSolver with :data:`HAND_TUNED` and the rigid-body modes on the matrix."""
+    """hyperfem's NewtonSolver with :data:`HAND_TUNED` and the rigid-body modes on the matrix.
+
+    GMRES (PETSc's default restart) in place of CG for a follower load's non-symmetric tangent, as an expert would:
+    CG there stops at ``ksp_max_it`` in every Newton iteration.
+    """
     from hyperfem.solver.linear import LinearSolver, _near_nullspace_hook
 
-    return LinearSolver(dict(HAND_TUNED), near_nullspace=_near_nullspace_hook(problem.displacement_space()))
+    options = dict(HAND_TUNED) if problem.conservative else {**HAND_TUNED, "ksp_type": "gmres"}
+    return LinearSolver(options, near_nullspace=_near_nullspace_hook(problem.displacement_space()))
 
 
 def _parse_options(pairs: list[str]) -> dict[str, object]:

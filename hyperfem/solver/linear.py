@@ -64,6 +64,7 @@ __all__ = [
     "DIRECT",
     "DIRECT_THRESHOLD",
     "HIGH_ORDER_DIRECT_THRESHOLDS",
+    "HIGH_ORDER_LAG",
     "MIXED_DIRECT_THRESHOLD",
     "MIXED_ITERATIVE",
     "NONSYMMETRIC_ITERATIVE",
@@ -145,6 +146,19 @@ two-iterations-old hierarchy is nearly as good. Measured (mixed bend,
 Krylov iterations; lag 3: 2 set-ups, 192 iterations; GAMG set-up time down
 by 60 %. The threshold 0.02 keeps three levels (0.05: four, and 2× the
 set-up time)."""
+
+HIGH_ORDER_LAG = 5
+"""``snes_lag_preconditioner`` of the iterative path for displacement degree 2 and higher (P1: 2).
+
+The AMG set-up of a P2 tangent (its Galerkin products) costs 1.5 s at 92k
+unknowns against 0.2–0.4 s of Krylov iterations per Newton iteration, and a
+hierarchy built at the first iteration of a solve preconditions the later
+ones nearly as well: measured (``benchmarks/scale.py --petsc
+snes_lag_preconditioner=N``, 92k unknowns, quiet 2-core machine, two runs
+each): bend serial 13.3–13.8 s with lag 2 vs 11.0–12.2 s with 5 (94 vs 97 CG
+iterations), twist 15.8–16.1 vs 13.8–14.6 s, bend on 2 ranks 6.4–6.7 vs
+5.7–6.2 s, same Newton iterations and test point. On P1 the lag of 5 costs a
+Newton iteration (bend 92k: 4 → 5, 4.7 → 5.0 s), so P1 keeps 2."""
 
 DIRECT_THRESHOLD = 10_000
 """Unknowns from which a displacement problem is solved iteratively.
@@ -481,5 +495,7 @@ def choose_linear_solver(
         threshold = HIGH_ORDER_DIRECT_THRESHOLDS[min(degree, 4)] if degree >= 3 else DIRECT_THRESHOLD
     if _global_size(W) < threshold:
         return LinearSolver()
-    options = SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE
-    return LinearSolver(dict(options), near_nullspace=_near_nullspace_hook(V), matrix_kind=BLOCKED_TANGENT)
+    options = dict(SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE)
+    if degree >= 2:
+        options["snes_lag_preconditioner"] = HIGH_ORDER_LAG
+    return LinearSolver(options, near_nullspace=_near_nullspace_hook(V), matrix_kind=BLOCKED_TANGENT)
