@@ -223,6 +223,8 @@ def test_mixed_fieldsplit_equals_direct(drive):
         if not threshold:
             # a good Schur approximation: tens of Krylov iterations per Newton step, not hundreds
             assert rec.linear_iterations < 150 * rec.iterations
+            u_block = solver.snes.getKSP().getPC().getFieldSplitSubKSP()[0].getOperators()[0]
+            assert u_block.getBlockSize() == 3  # node blocks: GAMG aggregates nodes
         results.append(problem.u.x.array.copy())
     scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
     np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
