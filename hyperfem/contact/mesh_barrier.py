@@ -314,6 +314,15 @@ class MeshBarrier:
         if self._pending is not None:
             self._lagged, self._pending = self._pending, None
 
+    def state_functions(self) -> dict[str, Any]:
+        r"""What a checkpoint holds: under generalized-:math:`\alpha` the frozen contact force of the accepted state
+        (:meth:`~hyperfem.contact.ForceInterpolation.state_functions`), else nothing (collective)."""
+        return self._interpolation.state_functions()
+
+    def restart(self, t: float) -> None:
+        """The checkpoint's functions were read back: the state at the accepted time ``t``."""
+        self._interpolation.restart(t)
+
     def project_tangent(self) -> None:
         """Project the Hessian at the next tangent, and until the iterates settle again (module docstring)."""
         self._project = True

@@ -199,6 +199,15 @@ class NodalBarrier:
             self._force_interpolation = ForceInterpolation(self.problem, self._gradient_at)
         return self._force_interpolation
 
+    def state_functions(self) -> dict[str, Any]:
+        r"""What a checkpoint holds: under generalized-:math:`\alpha` the frozen contact force of the accepted state
+        (:meth:`~hyperfem.contact.ForceInterpolation.state_functions`), else nothing."""
+        return self._interpolation().state_functions()
+
+    def restart(self, t: float) -> None:
+        """The checkpoint's functions were read back: the state at the accepted time ``t``."""
+        self._interpolation().restart(t)
+
     def _place(self, time: float) -> None:
         """Put the obstacle where it is at the obstacle time ``time`` (sets :attr:`time`; the lag is left alone)."""
         raise NotImplementedError

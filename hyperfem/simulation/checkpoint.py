@@ -9,7 +9,9 @@ stopped:
   :mod:`hyperfem.io.checkpoint` (one ``.npz`` per rank, owned dof values
   keyed by global dof index); and the fields of every updater of the problem
   that keeps a state of its own (:class:`StatefulUpdater`, e.g. the history
-  of :class:`~hyperfem.materials.viscoelastic.Viscoelastic`);
+  of :class:`~hyperfem.materials.viscoelastic.Viscoelastic`), and of every
+  external energy of the solver that keeps one (under generalized-:math:`\alpha`
+  a contact's frozen force of the step's start, :mod:`hyperfem.contact.interpolation`);
 * the time (load factor) and the count of accepted steps;
 * the state of the step-size control (:class:`StepperState`): the nominal
   increment, the run of easy steps towards the next growth, the attempts spent;
@@ -176,6 +178,13 @@ def _stateful_updaters(sim: Simulation) -> list[StatefulUpdater]:
     return [u for u in updaters if isinstance(u, StatefulUpdater)]
 
 
+def _stateful_energies(sim: Simulation) -> list[StatefulUpdater]:
+    """The solver's external energies that keep a state (a contact's frozen force under generalized-alpha)."""
+    external = getattr(sim.solver, "external", None)
+    energies = external.energies if external else ()
+    return [e for e in energies if isinstance(e, StatefulUpdater)]
+
+
 def case_hash(case: object) -> str:
     """SHA-256 of the canonical JSON of a case description (sorted keys; non-JSON values by ``str``)."""
     text = json.dumps(jsonable(case), sort_keys=True, default=str, allow_nan=True)
@@ -191,6 +200,8 @@ def checkpoint_functions(sim: Simulation) -> dict[str, fem.Function]:
         functions.update(v=problem.v, a=problem.a)
     for k, updater in enumerate(_stateful_updaters(sim)):
         functions.update({f"updater{k}_{name}": f for name, f in updater.state_functions().items()})
+    for k, energy in enumerate(_stateful_energies(sim)):
+        functions.update({f"external{k}_{name}": f for name, f in energy.state_functions().items()})
     return functions
 
 
@@ -321,7 +332,7 @@ def load_checkpoint(sim: Simulation, path: str | Path) -> dict:
         raise CheckpointError(f"cannot restart from {where}: it does not match this run: {mismatch}")
     read_functions(where, checkpoint_functions(sim), sim.comm)
     t = float(meta["time"])
-    for updater in _stateful_updaters(sim):
+    for updater in [*_stateful_updaters(sim), *_stateful_energies(sim)]:
         updater.restart(t)
     if sim.kind == "dynamic":
         from hyperfem.dynamics.incremental import DynamicState
@@ -335,6 +346,7 @@ def load_checkpoint(sim: Simulation, path: str | Path) -> dict:
     if sim.solver is not None:  # the explicit scheme runs its hooks before every force assembly
         sim.solver.refresh()  # state hooks (e.g. a material's rotation field) at the loaded state
         if sim.solver.external:  # contact pulls a penetrating start guess back towards the loaded state
+            sim.solver.external.update(sim.problem.time)  # obstacles where they were: the friction lag is taken there
             sim.solver.external.remember()
     return meta
 
