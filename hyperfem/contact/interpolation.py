@@ -39,7 +39,8 @@ limit of a light body the defect of a state decays by :math:`-\alpha_f/(1-\alpha
 = -\rho_\infty` per step, for the contact now as for the elastic forces (a body
 that starts inside the barrier's reach, out of balance, ends 0.3–0.6 % off).
 
-:class:`ForceInterpolation` is what a contact's barrier holds: the problem
+:class:`ForceInterpolation` is what a contact's barrier holds (and a tie,
+:mod:`~hyperfem.contact.tie`, whose linear force it interpolates exactly): the problem
 tells it (``force_interpolation()``,
 :meth:`~hyperfem.dynamics.IncrementalProblem.force_interpolation`) whether a
 generalized-:math:`\alpha` step is being solved; outside one (quasi-static,
