@@ -473,3 +473,69 @@ def test_cli_fit_prony_errors_are_one_line(name, shared_tmp, capsys):
         assert err.startswith("hyperfem: error: fit: ") and expected in err and err.count("\n") == 1, err
     else:
         assert err == ""
+
+
+# -- relaxation rows in a file of hyperelastic test data ----------------------------------------------------
+def _combined_csv(path: Path, stretches=(1.5,)) -> RelaxationCurve:
+    """Treloar's uniaxial rows, then the relaxation rows of ``_relaxation(0.5)`` held at ``stretches`` (cycled)."""
+    curve = _relaxation(0.5, times=np.linspace(0.0, 5.0, 26))
+    uniaxial = treloar_data()["uniaxial"]
+    lines = ["mode,stretch,nominal_stress_MPa,time_s"]
+    lines += [f"uniaxial,{lam:.17g},{P:.17g}," for lam, P in zip(uniaxial.stretch, uniaxial.stress, strict=True)]
+    lines += [f"relaxation,{stretches[i % len(stretches)]:g},{y:.17g},{t:.17g}"
+              for i, (t, y) in enumerate(zip(curve.time, curve.value, strict=True))]
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.Barrier()
+    return curve
+
+
+def test_relaxation_rows_of_a_test_data_file(shared_tmp, capsys):
+    """One file, uniaxial and relaxation rows: the hyperelastic laws fit the former and say the latter are prony's;
+    prony fits the latter (exact data: the series back to 1e-6)."""
+    path = shared_tmp / "combined.csv"
+    curve = _combined_csv(path)
+    curves = read_curves(path)
+    assert list(curves) == ["uniaxial"] and fitting.relaxation_rows(path) == curve.time.size
+    np.testing.assert_array_equal(curves["uniaxial"].stretch, treloar_data()["uniaxial"].stretch)
+    result = fit("prony", path, terms=2, ramp_time=0.5)
+    np.testing.assert_allclose([*result.prony.g, *result.prony.tau], [0.3, 0.2, 0.2, 1.0], rtol=1e-6)
+    assert result.instantaneous == pytest.approx(2.5, rel=1e-6)
+    summary = dispatch(["fit", str(path), "--law", "neo_hookean"])
+    assert summary["relaxation_rows_left_out"] == 26 and set(summary["rms_MPa"]) == {"uniaxial"}
+    if MPI.COMM_WORLD.rank == 0:
+        assert "26 rows of mode relaxation left out: fit them with hyperfem fit" in capsys.readouterr().out
+    with pytest.raises(ParameterError, match="fit: relaxation data are fitted by law 'prony'"):
+        fit("yeoh", path, modes=["uniaxial", "relaxation"])
+
+
+COMBINED_ERRORS = {
+    "two stretches": (None, "prony", "relaxation rows at 2 stretches (1.5, 2): one relaxation test"),
+    "no time column": ("mode,stretch,nominal_stress_MPa\nuniaxial,1.5,0.3\nrelaxation,1.5,0.3\n", "prony",
+                       "no column 'time_s' (its rows of mode relaxation need the time of each point)"),
+    "only relaxation": ("mode,stretch,nominal_stress_MPa,time_s\nrelaxation,1.5,0.3,0\nrelaxation,1.5,0.2,1\n",
+                        "yeoh", "only relaxation rows (mode relaxation): fit them with law 'prony'"),
+    "no relaxation rows": ("mode,stretch,nominal_stress_MPa,time_s\nuniaxial,1.5,0.3,\n", "prony",
+                           "no rows of mode relaxation (modes found: uniaxial): fit these data with a hyperelastic"),
+    "misspelt": ("mode,stretch,nominal_stress_MPa,time_s\nrelax,1.5,0.3,0\n", "yeoh",
+                 ":2: unknown mode 'relax' (did you mean 'relaxation'?)"),
+}
+
+
+@pytest.mark.parametrize("name", list(COMBINED_ERRORS))
+def test_relaxation_rows_refused_in_one_line(name, shared_tmp, capsys):
+    text, law, expected = COMBINED_ERRORS[name]
+    path = shared_tmp / f"combined_{name.replace(' ', '_')}.csv"
+    if text is None:
+        _combined_csv(path, stretches=(1.5, 2.0))
+    elif MPI.COMM_WORLD.rank == 0:
+        path.write_text(text)
+    MPI.COMM_WORLD.Barrier()
+    with pytest.raises(SystemExit) as info:
+        run(lambda: dispatch(["fit", str(path), "--law", law]))
+    assert info.value.code == 1
+    err = capsys.readouterr().err
+    if MPI.COMM_WORLD.rank == 0:
+        assert err.startswith("hyperfem: error: fit: ") and expected in err and err.count("\n") == 1, err
+    else:
+        assert err == ""

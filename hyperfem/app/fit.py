@@ -7,7 +7,8 @@
     hyperfem fit RELAX.csv --law prony [--terms N | --tau 0.1,1 [--fit-tau]] [--ramp-time T] [--json] [--png]
 
 DATA.csv has the columns ``mode,stretch,nominal_stress_MPa`` (the format of
-:func:`hyperfem.materials.fitting.read_curves`). The command prints the
+:func:`hyperfem.materials.fitting.read_curves`; rows of mode ``relaxation``, with a
+column ``time_s``, are left to ``--law prony``, and said so). The command prints the
 parameters, the rms and relative errors per mode, Drucker's stability over the
 data range and a ``[[material]]`` table (moduli in Pa) to paste into a case file;
 ``--json`` prints ``{"law", "parameters", "rms_MPa", "stable", ...}`` instead.
@@ -15,8 +16,9 @@ data range and a ``[[material]]`` table (moduli in Pa) to paste into a case file
 ``--law prony`` fits a Prony series to relaxation data instead
 (:mod:`hyperfem.materials.prony_fit`): RELAX.csv has the columns ``time_s`` and
 ``nominal_stress_MPa`` (the stress at a held strain) or ``relaxation_modulus``
-(:math:`g(t)`, 1 at 0); it prints :math:`g_i, \tau_i`, the rms and a
-``[material.viscoelastic]`` table.
+(:math:`g(t)`, 1 at 0), or is a file of DATA.csv's format with a ``time_s``
+column, of which it takes the rows of mode ``relaxation`` (one held stretch); it
+prints :math:`g_i, \tau_i`, the rms and a ``[material.viscoelastic]`` table.
 Every rank fits (each on its own, ``MPI.COMM_SELF``: the same numbers); rank 0
 prints and draws.
 """
@@ -47,19 +49,23 @@ def add_fit_parser(sub: argparse._SubParsersAction) -> None:
 
     f = sub.add_parser(
         "fit",
-        help="fit a law's parameters to homogeneous test data (CSV)",
+        help="fit a law's parameters to homogeneous test data, or a Prony series to relaxation data (CSV)",
         description="Least-squares fit of a hyperelastic law to homogeneous test data: the response is the law's own "
         "UFL energy (incompressible unless --bulk-modulus is given or the data have volumetric points). Prints the "
         "parameters, the rms and relative errors per mode, Drucker stability over the data range and a "
-        "[[material]] table (Pa) to paste into a case file.",
+        "[[material]] table (Pa) to paste into a case file. --law prony fits a Prony series (g_i, tau_i) to "
+        "relaxation data instead and prints a [material.viscoelastic] table.",
         epilog="DATA.csv: a header with the columns mode,stretch,nominal_stress_MPa (others ignored); mode one of "
         f"{', '.join(MODES)}; stretch the stretch along the load (volumetric: J^(1/3)); nominal_stress_MPa the "
         "first Piola-Kirchhoff stress P11 in MPa (force per undeformed area). Example: hyperfem fit "
         "hyperfem/materials/data/treloar1944.csv --law ogden --terms 3 --png fit.png. --law prony: relaxation data, "
         "columns time_s (s from the start of the loading) and nominal_stress_MPa (the stress at a held strain) or "
-        "relaxation_modulus (g(t) = G(t)/G(0)); the strain ramps linearly over --ramp-time, then is held.",
+        "relaxation_modulus (g(t) = G(t)/G(0)); the strain ramps linearly over --ramp-time, then is held. One file may "
+        "hold both: rows of mode relaxation (stretch: the uniaxial stretch held, one per file; time_s; "
+        "nominal_stress_MPa) are fitted by --law prony and left out by the hyperelastic laws.",
     )
-    f.add_argument("data", type=Path, help="CSV file of test data (columns mode,stretch,nominal_stress_MPa)")
+    f.add_argument("data", type=Path, help="CSV file of test data (columns mode,stretch,nominal_stress_MPa; "
+                   "--law prony: time_s and nominal_stress_MPa or relaxation_modulus)")
     f.add_argument("--law", required=True, metavar="LAW", help=f"the law: {', '.join(FIT_LAWS)}")
     f.add_argument("--terms", type=positive_int, default=None, metavar="N",
                    help="number of terms of ogden and reduced_polynomial (default 3)")
@@ -155,7 +161,7 @@ def fit_command(args: argparse.Namespace) -> dict[str, Any]:
     """Run ``hyperfem fit``; returns the JSON summary."""
     from hyperfem.app.spec import LAWS
     from hyperfem.errors import ParameterError
-    from hyperfem.materials.fitting import fit, plot_fits, read_curves
+    from hyperfem.materials.fitting import RELAXATION_MODE, fit, plot_fits, read_curves, relaxation_rows
 
     if args.law == "prony":
         return _prony_command(args)
@@ -176,6 +182,9 @@ def fit_command(args: argparse.Namespace) -> dict[str, Any]:
         weighting=args.weighting,
     )
     summary = result.to_json()
+    left_out = relaxation_rows(args.data)
+    if left_out:
+        summary["relaxation_rows_left_out"] = left_out
     if args.png is not None:
         summary["png"] = str(args.png)
         _plot(args, lambda: plot_fits([result], args.png, title=f"{result.label} fitted to {args.data.name}"))
@@ -186,6 +195,9 @@ def fit_command(args: argparse.Namespace) -> dict[str, Any]:
             counts = ", ".join(f"{m} {c.stretch.size}" for m, c in result.data.items())
             lines = [f"{args.data}: {sum(c.stretch.size for c in result.data.values())} points ({counts})",
                      result.summary(), "", "# paste into a case file:"]
+            if left_out:
+                lines.insert(1, f"{left_out} rows of mode {RELAXATION_MODE} left out: fit them with "
+                                f"hyperfem fit {args.data} --law prony [--ramp-time T]")
             if result.law not in LAWS:
                 lines.append(f'# (case files do not read law = "{result.law}" yet)')
             lines.append(result.case_table(stress_factor=PA_PER_MPA).rstrip("\n"))

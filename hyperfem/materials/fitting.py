@@ -18,6 +18,11 @@ modes of :mod:`~hyperfem.materials.homogeneous`), ``stretch`` (the stretch
 first Piola–Kirchhoff — stress :math:`P_{11}`, force per undeformed area, in MPa;
 volumetric: :math:`P_{11} = -p\,J^{2/3}` for a pressure :math:`p`); other
 columns are ignored. The fitted moduli are in the data's unit (MPa).
+The same file may hold relaxation tests: rows of mode ``relaxation`` with a
+column ``time_s`` (s from the start of the loading), ``stretch`` the uniaxial
+stretch held and ``nominal_stress_MPa`` the stress at that time. The
+hyperelastic laws leave them out (:func:`relaxation_rows` counts them);
+``law="prony"`` fits them (:func:`~hyperfem.materials.prony_fit.read_relaxation`).
 Treloar's 1944 data ship with hyperfem (:func:`treloar_data`, the file
 ``hyperfem/materials/data/treloar1944.csv`` and its source note beside it).
 Relaxation data (time and the stress at a held strain, or :math:`g(t)`) are fitted
@@ -115,6 +120,7 @@ if TYPE_CHECKING:  # prony_fit imports this module's helpers: fit() imports it w
 __all__ = [
     "BULK_RATIO",
     "COLUMNS",
+    "RELAXATION_MODE",
     "FIT_LAWS",
     "TRELOAR",
     "Curve",
@@ -124,6 +130,7 @@ __all__ = [
     "fit",
     "plot_fits",
     "read_curves",
+    "relaxation_rows",
     "treloar_data",
 ]
 
@@ -131,6 +138,9 @@ Expr = ufl.core.expr.Expr
 
 COLUMNS = ("mode", "stretch", "nominal_stress_MPa")
 """The columns :func:`read_curves` needs (module docstring)."""
+
+RELAXATION_MODE = "relaxation"
+"""The mode of relaxation rows (with a ``time_s`` column) in a file of :func:`read_curves`: fitted by ``prony``."""
 
 TRELOAR = Path(__file__).resolve().parent / "data" / "treloar1944.csv"
 """Treloar's 1944 data (8 % sulphur natural rubber, 20 °C): uniaxial, equibiaxial, pure shear (README beside it)."""
@@ -182,12 +192,11 @@ class Curve:
         object.__setattr__(self, "stress", P[order])
 
 
-def read_curves(path: str | Path) -> dict[str, Curve]:
-    """The curves of a CSV file of homogeneous test data (module docstring), by mode.
+def _read_rows(path: str | Path, need: str) -> list[list[str]]:
+    """The rows of a CSV file, its header first (``need``: the columns, for the message of an empty file).
 
     Raises:
-        ParameterError: Missing file, missing column, unknown mode, a value that is not a
-            number (each naming the file and line).
+        ParameterError: Missing, unreadable or empty file.
     """
     path = Path(path)
     if not path.is_file():
@@ -198,7 +207,31 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ParameterError(f"fit: cannot read {path}: {exc}") from None
     if not rows:
-        raise ParameterError(f"fit: {path} is empty (need a header {','.join(COLUMNS)})")
+        raise ParameterError(f"fit: {path} is empty (need a header with the columns {need})")
+    return rows
+
+
+def relaxation_rows(path: str | Path) -> int:
+    """How many rows of mode ``relaxation`` a file of :func:`read_curves` has (0 without a ``mode`` column)."""
+    rows = _read_rows(path, ", ".join(COLUMNS))
+    header = [h.strip() for h in rows[0]]
+    if "mode" not in header:
+        return 0
+    column = header.index("mode")
+    return sum(1 for row in rows[1:] if len(row) > column and row[column].strip() == RELAXATION_MODE)
+
+
+def read_curves(path: str | Path) -> dict[str, Curve]:
+    """The curves of a CSV file of homogeneous test data (module docstring), by mode.
+
+    Rows of mode ``relaxation`` are left out (:func:`relaxation_rows`; ``law="prony"`` fits them).
+
+    Raises:
+        ParameterError: Missing file, missing column, unknown mode, a value that is not a
+            number (each naming the file and line); relaxation rows only.
+    """
+    path = Path(path)
+    rows = _read_rows(path, ", ".join(COLUMNS))
     header = [h.strip() for h in rows[0]]
     index: dict[str, int] = {}
     for column in COLUMNS:
@@ -215,6 +248,7 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
             )
         index[column] = header.index(column)
     points: dict[str, list[tuple[float, float]]] = {}
+    relaxation = 0
     for line, row in enumerate(rows[1:], start=2):
         if not any(cell.strip() for cell in row):
             continue
@@ -222,9 +256,12 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
         if len(row) <= max(index.values()):
             raise ParameterError(f"{where}: {len(row)} columns, the header has {len(header)}")
         mode = row[index["mode"]].strip()
+        if mode == RELAXATION_MODE:
+            relaxation += 1
+            continue
         if mode not in MODES:
-            raise ParameterError(f"{where}: unknown mode {mode!r}{_did_you_mean(mode, list(MODES))}; "
-                                 f"modes: {', '.join(MODES)}")
+            raise ParameterError(f"{where}: unknown mode {mode!r}{_did_you_mean(mode, [*MODES, RELAXATION_MODE])}; "
+                                 f"modes: {', '.join(MODES)} ({RELAXATION_MODE}: law 'prony')")
         values = []
         for column in COLUMNS[1:]:
             text = row[index[column]].strip()
@@ -238,6 +275,9 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
         if values[0] <= 0:
             raise ParameterError(f"{where}: stretch must be > 0, got {values[0]!r}")
         points.setdefault(mode, []).append((values[0], values[1]))
+    if not points and relaxation:
+        raise ParameterError(f"fit: {path}: only relaxation rows (mode {RELAXATION_MODE}): fit them with law 'prony' "
+                             f"(hyperfem fit {path.name} --law prony)")
     if not points:
         raise ParameterError(f"fit: {path} has no data rows")
     return {m: Curve(m, np.array([p[0] for p in points[m]]), np.array([p[1] for p in points[m]]))
@@ -726,7 +766,7 @@ def _number(value: float) -> str:
 
 
 # -- the fit ---------------------------------------------------------------------------------------------
-def _select(data: object, modes: Sequence[str] | None) -> dict[str, Curve]:
+def _select(data: object, modes: Sequence[str] | None, law: str) -> dict[str, Curve]:
     curves: dict[str, Any]
     if isinstance(data, (str, Path)):
         curves = dict(read_curves(data))
@@ -746,6 +786,8 @@ def _select(data: object, modes: Sequence[str] | None) -> dict[str, Curve]:
         modes = [modes]
     selected = {}
     for mode in modes:
+        if mode == RELAXATION_MODE:
+            raise ParameterError(f"fit: relaxation data are fitted by law 'prony' (a Prony series), not by {law}")
         if mode not in MODES:
             raise ParameterError(f"fit: unknown mode {mode!r}{_did_you_mean(str(mode), list(MODES))}; "
                                  f"modes: {', '.join(MODES)}")
@@ -926,7 +968,7 @@ def fit(
     if bulk_modulus is not None:
         check_positive("bulk_modulus", bulk_modulus, "fit")
     n_terms = terms if terms is not None else _TERMS.get(law)
-    curves = _select(data, modes)
+    curves = _select(data, modes, law)
     fit_K = "volumetric" in curves and bulk_modulus is None
     incompressible = bulk_modulus is None and not fit_K
     model = _MODELS[law](n_terms or 1, _reach(curves))

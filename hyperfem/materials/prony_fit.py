@@ -15,7 +15,10 @@ r"""A Prony series fitted to relaxation data: the :class:`~hyperfem.materials.pr
 *stress* data) or ``relaxation_modulus`` (the normalised relaxation function
 :math:`g(t) = G(t)/G(0)`, 1 at :math:`t = 0`: *modulus* data); other columns are
 ignored. The strain is ramped linearly over :math:`[0, t_r]` (``ramp_time``,
-default 0: a step of strain) and held from then on.
+default 0: a step of strain) and held from then on. A file of hyperelastic test
+data (:func:`~hyperfem.materials.fitting.read_curves`, a column ``mode``) with a
+column ``time_s`` gives its rows of mode ``relaxation`` (one test: every such row
+at the same ``stretch``, the uniaxial stretch held); its other modes are left out.
 
 **Model.** The response is the closed form of the issue (Simo 1987, linear
 viscoelasticity) that :meth:`PronySeries.ramp_and_hold` evaluates, with its
@@ -54,7 +57,6 @@ table for a case file.
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -64,7 +66,14 @@ from typing import Any
 import numpy as np
 
 from hyperfem.errors import OutputError, ParameterError
-from hyperfem.materials.fitting import WEIGHTINGS, ModeError, _did_you_mean, _least_squares
+from hyperfem.materials.fitting import (
+    RELAXATION_MODE,
+    WEIGHTINGS,
+    ModeError,
+    _did_you_mean,
+    _least_squares,
+    _read_rows,
+)
 from hyperfem.materials.prony import PronySeries, ramp_and_hold_factors
 from hyperfem.validation import is_finite_number
 
@@ -143,28 +152,27 @@ def read_relaxation(path: str | Path, ramp_time: float = 0.0) -> RelaxationCurve
     """The :class:`RelaxationCurve` of a CSV file (module docstring).
 
     Args:
-        path: The CSV file: ``time_s`` and ``nominal_stress_MPa`` or ``relaxation_modulus``.
+        path: The CSV file: ``time_s`` and ``nominal_stress_MPa`` or ``relaxation_modulus``
+            (with a column ``mode``: its rows of mode ``relaxation``).
         ramp_time: Duration of the ramp of strain (s; 0: a step).
 
     Raises:
         ParameterError: Missing file or column, both value columns, a value that is not a finite
-            number (naming file and line), a negative time.
+            number (naming file and line), a negative time; with a ``mode`` column: no relaxation
+            rows, or relaxation rows at more than one stretch.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ParameterError(f"fit: data file not found: {path}")
-    try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise ParameterError(f"fit: cannot read {path}: {exc}") from None
     need = "time_s and nominal_stress_MPa or relaxation_modulus"
-    if not rows:
-        raise ParameterError(f"fit: {path} is empty (need a header with the columns {need})")
+    rows = _read_rows(path, need)
     header = [h.strip() for h in rows[0]]
+    modes = header.index("mode") if "mode" in header else None
     if "time_s" not in header:
         hint = _did_you_mean("time_s", header)
-        if not hint and "stretch" in header:
+        if not hint and modes is not None and any(
+            len(row) > modes and row[modes].strip() == RELAXATION_MODE for row in rows[1:]
+        ):
+            hint = f" (its rows of mode {RELAXATION_MODE} need the time of each point)"
+        elif not hint and "stretch" in header:
             hint = " (these are hyperelastic test data: fit them with a hyperelastic law)"
         raise ParameterError(f"fit: {path}: no column 'time_s'{hint}; relaxation data need the columns {need} "
                              f"(found: {', '.join(header) or 'none'})")
@@ -177,11 +185,16 @@ def read_relaxation(path: str | Path, ramp_time: float = 0.0) -> RelaxationCurve
                              "give one (stress at a held strain, or g(t))")
     kind = kinds[0]
     columns = {"time_s": header.index("time_s"), kind: header.index(RELAXATION_KINDS[kind])}
-    times, values = [], []
+    if modes is not None and "stretch" in header:
+        columns["stretch"] = header.index("stretch")
+    times, values, stretches, others = [], [], set(), set()
     for line, row in enumerate(rows[1:], start=2):
         if not any(cell.strip() for cell in row):
             continue
         where = f"fit: {path}:{line}"
+        if modes is not None and (len(row) <= modes or row[modes].strip() != RELAXATION_MODE):
+            others.add(row[modes].strip() if len(row) > modes else "")
+            continue
         if len(row) <= max(columns.values()):
             raise ParameterError(f"{where}: {len(row)} columns, the header has {len(header)}")
         numbers = []
@@ -197,10 +210,22 @@ def read_relaxation(path: str | Path, ramp_time: float = 0.0) -> RelaxationCurve
             numbers.append(value)
         if numbers[0] < 0.0:
             raise ParameterError(f"{where}: time_s must be >= 0 (from the start of the loading), got {numbers[0]!r}")
+        if len(numbers) > 2:
+            if not numbers[2] > 0.0:
+                raise ParameterError(f"{where}: stretch must be > 0, got {numbers[2]!r}")
+            stretches.add(numbers[2])
         times.append(numbers[0])
         values.append(numbers[1])
+    if not times and modes is not None:
+        found = ", ".join(sorted(others)) or "none"
+        raise ParameterError(f"fit: {path}: no rows of mode {RELAXATION_MODE} (modes found: {found}): fit these data "
+                             "with a hyperelastic law")
     if not times:
         raise ParameterError(f"fit: {path} has no data rows")
+    if len(stretches) > 1:
+        held = ", ".join(f"{v:g}" for v in sorted(stretches))
+        raise ParameterError(f"fit: {path}: relaxation rows at {len(stretches)} stretches ({held}): one relaxation "
+                             "test (one held stretch) per fit")
     return RelaxationCurve(np.array(times), np.array(values), kind, ramp_time)
 
 
