@@ -1,7 +1,11 @@
 """Material laws: form compilation and tangent assembly of every law of issue 21 against neo-Hookean, and the
 accuracy of the principal-stretch energies where stretches coincide.
 
-Prints one JSON object per line:
+The laws: neo-Hookean, Ogden-3 (Ogden's 1972 exponents and a set without an even
+one), Hencky, SVK in stretches, Yeoh, a five-term reduced polynomial, Gent,
+Arruda-Boyce, Veronda-Westmann, HGO, Weiss, Fung, and a viscoelastic neo-Hookean
+(the incremental potential of a step: two Prony terms, the history frozen at the
+quadrature points). Prints one JSON object per line:
 
 * ``"kind": "compile"``: the residual and the tangent form of each law on the
   6x6x6 unit cube (P1, quadrature degree 2), compiled into a fresh JIT cache
@@ -66,12 +70,18 @@ from hyperfem.materials import (  # noqa: E402
     weiss,
     yeoh,
 )
+from hyperfem.materials.neo_hookean import neo_hookean_isochoric  # noqa: E402
 from hyperfem.materials.principal_stretches import (  # noqa: E402
     eigenvalue_power_sum,
     eigenvalue_sum,
     hencky,
+    saint_venant_kirchhoff_principal,
     spectral_invariants,
 )
+from hyperfem.materials.prony import PronySeries  # noqa: E402
+from hyperfem.materials.viscoelastic import Viscoelastic  # noqa: E402
+from hyperfem.materials.yeoh import ReducedPolynomialParameters, reduced_polynomial  # noqa: E402
+from hyperfem.problem import SplitEnergy  # noqa: E402
 
 LAME = LameParameters(mu=1.0, lmbda=10.0)
 TRELOAR = OgdenParameters(mu=(0.63, 0.0012, -0.01), alpha=(1.3, 5.0, -2.0), K=10.0)  # Ogden 1972, MPa
@@ -82,7 +92,11 @@ LAWS = {
     "ogden3_treloar": lambda F: ogden(F, TRELOAR),
     "ogden3_general": lambda F: ogden(F, GENERAL),
     "hencky": lambda F: hencky(F, LAME),
+    "saint_venant_kirchhoff_principal": lambda F: saint_venant_kirchhoff_principal(F, LAME),
     "yeoh": lambda F: yeoh(F, YeohParameters(c10=0.5, c20=-0.04, c30=0.006, K=10.0)),
+    "reduced_polynomial": lambda F: reduced_polynomial(
+        F, ReducedPolynomialParameters(coefficients=(0.5, -0.04, 0.006, -1e-4, 2e-6), K=10.0)
+    ),
     "gent": lambda F: gent(F, GentParameters(mu=1.1, Jm=10.0, K=10.0)),
     "arruda_boyce": lambda F: arruda_boyce(F, ArrudaBoyceParameters(mu=0.9, lambda_m=2.5, K=10.0)),
     "veronda_westmann": lambda F: veronda_westmann(F, VerondaWestmannParameters(c1=0.3, c2=0.8, K=10.0)),
@@ -97,6 +111,11 @@ LAWS = {
         FungOrthotropicParameters(c=1.0, b1=2.0, b2=1.5, b3=1.0, b4=0.5, b5=0.3, b6=0.4, b7=1.2, b8=0.9, b9=0.8,
                                   K=10.0),
     ),
+    # the incremental potential of a step (history frozen: Q_i, S_n at the quadrature points of degree 2)
+    "viscoelastic_neo_hookean": lambda F: Viscoelastic(
+        SplitEnergy(lambda G: neo_hookean_isochoric(G, 1.0), 10.0), PronySeries(g=(0.3, 0.2), tau=(0.1, 1.0)),
+        quadrature_degree=2,
+    )(F),
 }
 EVEN = ((1.0, 2.0), (0.3, 4.0), (-0.2, -2.0))  # (mu_p, alpha_p)
 
