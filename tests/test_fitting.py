@@ -325,7 +325,18 @@ CLI_ERRORS = {
     "law": ([str(fitting.TRELOAR), "--law", "mooney"], "fit: unknown law 'mooney' (did you mean 'mooney_rivlin'?)"),
     "mode": ([str(fitting.TRELOAR), "--law", "yeoh", "--modes", "uniaxial,equi_biaxial"],
              "fit: unknown mode 'equi_biaxial' (did you mean 'equibiaxial'?)"),
+    "fibre law": ([str(fitting.TRELOAR), "--law", "holzapfel_gasser_ogden"],
+                  "fit: law 'holzapfel_gasser_ogden' is not fitted to test data (an anisotropic fibre law"),
+    "compressible law": ([str(fitting.TRELOAR), "--law", "hencky"],
+                         "fit: law 'hencky' is not fitted to test data (a compressible law of two elastic constants"),
 }
+
+
+def test_every_case_file_law_is_fitted_or_says_why():
+    from hyperfem.app.spec import LAWS
+
+    assert set(LAWS) <= set(fitting.FIT_LAWS) | set(fitting._NOT_FITTED)
+    assert not set(fitting.FIT_LAWS) & set(fitting._NOT_FITTED)
 
 
 @pytest.mark.parametrize("name", list(CLI_ERRORS))

@@ -491,6 +491,17 @@ _MODELS: dict[str, Callable[[int, float], _Model]] = {
 FIT_LAWS: tuple[str, ...] = (*_MODELS, "prony")
 """The laws :func:`fit` knows (their case-file names; ``prony``: a Prony series to relaxation data)."""
 
+_FIBRE = ("an anisotropic fibre law: the homogeneous modes here are those of an isotropic law, and its response "
+          "needs the fibre directions of each test")
+_COMPRESSIBLE = "a compressible law of two elastic constants without an isochoric part"
+_NOT_FITTED = {
+    **dict.fromkeys(("holzapfel_gasser_ogden", "weiss", "fung_orthotropic", "muscle"), _FIBRE),
+    **dict.fromkeys(("robust_neo_hookean", "stable_neo_hookean", "saint_venant_kirchhoff", "linear_elastic",
+                     "fixed_corotated", "corotational_linear", "arap", "hencky", "saint_venant_kirchhoff_principal"),
+                    _COMPRESSIBLE),
+}
+"""Case-file laws :func:`fit` does not fit, and why (their error names the reason, not an unknown law)."""
+
 _TERMS = {"reduced_polynomial": 3, "ogden": 3}
 """Laws with a number of terms, and its default."""
 
@@ -955,6 +966,9 @@ def fit(
         raise ParameterError(f"fit: {given[0]} is an option of law 'prony' (relaxation data), not of {law}")
     if max_iterations is None:
         max_iterations = 500
+    if law in _NOT_FITTED:
+        raise ParameterError(f"fit: law {law!r} is not fitted to test data ({_NOT_FITTED[law]}); "
+                             f"laws: {', '.join(FIT_LAWS)}")
     if law not in _MODELS:
         raise ParameterError(f"fit: unknown law {law!r}{_did_you_mean(str(law), FIT_LAWS)}; "
                              f"laws: {', '.join(FIT_LAWS)}")
