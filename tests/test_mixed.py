@@ -293,3 +293,24 @@ def test_locking_gripped_bar():
         results[formulation] = _value_at(u, (L, w, w), 1) / w
     assert results["mixed"] == pytest.approx(exact, rel=0.06)
     assert abs(results["displacement"]) < 0.5 * abs(exact)
+
+
+def test_roundoff_reference_of_theta_and_of_a_time_step():
+    """The round-off floor's identity vector h: REFERENCE_SCALE_FRACTION of the cell size in the displacement dofs,
+    1 (theta = 1 + w) in the volume dofs; a time step of the three-field body (dynamics) gets the body's (it had h
+    in every dof: an estimate 18 times lower, 2.8e-10 against 5.2e-9, for the uniaxial cube at K/mu = 1e8)."""
+    import hyperfem.dynamics as dyn
+    from hyperfem.cases.uniaxial import unit_cube
+    from hyperfem.solver.roundoff import REFERENCE_SCALE_FRACTION, VOLUME_REFERENCE, reference_scale
+
+    problem = MixedHyperelasticProblem(unit_cube(1), SplitEnergy(lambda F: 0.5 * (isochoric_invariants(F)[0] - 3.0),
+                                                                 1e4))
+    template = problem.u.x.petsc_vec
+    h = reference_scale(problem, template).array
+    owned = template.getLocalSize()
+    fields = {k: v[v < owned] for k, v in problem.field_dofs().items()}
+    np.testing.assert_allclose(h[fields["volume"]], VOLUME_REFERENCE)
+    cell = math.sqrt(3.0)  # the largest bounding-box diagonal of the unit cube's tetrahedra
+    np.testing.assert_allclose(h[fields["displacement"]], REFERENCE_SCALE_FRACTION * cell, rtol=1e-12)
+    step = dyn.IncrementalProblem(problem, dyn.QuasiStatic())
+    np.testing.assert_allclose(reference_scale(step, template).array, h, rtol=1e-15)

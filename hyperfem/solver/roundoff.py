@@ -20,7 +20,7 @@ from mpi4py import MPI
 from dolfinx import mesh as dmesh
 from petsc4py import PETSc
 
-from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem
+from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepState
 
 __all__ = [
     "CONVERGED_ROUNDOFF",
@@ -92,7 +92,8 @@ def reference_scale(problem: SolidProblem, template: PETSc.Vec) -> PETSc.Vec:
     the largest over the ranks).
 
     Args:
-        problem: The problem (its mesh, and ``field_dofs`` for a mixed unknown).
+        problem: The problem (its mesh, and ``field_dofs`` for a mixed unknown: its own, or those of the
+            body of a time step).
         template: A vector of the unknown's layout.
     """
     mesh = problem.domain.mesh
@@ -104,7 +105,8 @@ def reference_scale(problem: SolidProblem, template: PETSc.Vec) -> PETSc.Vec:
     scale = template.duplicate()
     owned = scale.getLocalSize()
     values = np.zeros(owned)
-    fields = problem.field_dofs() if isinstance(problem, MixedProblemProtocol) else {"displacement": np.arange(owned)}
+    base = problem.base if isinstance(problem, TimeStepState) else problem  # a time step: the body's fields
+    fields = base.field_dofs() if isinstance(base, MixedProblemProtocol) else {"displacement": np.arange(owned)}
     dofs = fields["displacement"]
     values[dofs[dofs < owned]] = REFERENCE_SCALE_FRACTION * h
     volume = fields.get("volume", np.zeros(0, dtype=np.int64))
