@@ -77,6 +77,7 @@ from hyperfem.solver.filters import (
     inversion_filters,
     resolve_min_jacobian,
 )
+from hyperfem.solver.forcing import FinalStepForcing
 from hyperfem.solver.linear import (
     AIJPreconditioner,
     LinearSolver,
@@ -344,6 +345,7 @@ class NewtonSolver:
         self._objective = self._energy_objective(me, energy_line_search, energy_roundoff_rtol, compiler)
         self.min_jacobian = resolve_min_jacobian(min_jacobian, problem)
         self._roundoff = RoundoffStop(self.snes, problem, self._nlp.x, self._nlp.b, roundoff_factor)
+        self._forcing = FinalStepForcing(self.snes)
         self._min_J = QuadratureMinimum(problem.domain.mesh, problem.volume_jacobian(), problem.quadrature_points())
         self._install_step_filters(step_filter, volume_fraction, [*step_filters, *self.external.step_filters])
         # Every Newton direction goes through the pre-check: its Dirichlet
@@ -618,7 +620,9 @@ class NewtonSolver:
             return _DOMAIN
         if self._linear_failure:
             return _LINEAR
-        return self._roundoff(snes, it, norms)
+        reason = self._roundoff(snes, it, norms)
+        self._forcing(snes, it, float(norms[2]), reason)
+        return reason
 
     @property
     def nonlinear_problem(self) -> fpetsc.NonlinearProblem:
@@ -728,6 +732,7 @@ class NewtonSolver:
                 refusal = self._start_refusal() or self.external.sweep_refusal()
         solved = not refusal
         reason, message = (self._run_snes(), "") if solved else (_DOMAIN, refusal)
+        self._forcing.restore()
         self.problem.u.x.scatter_forward()
         # A solve refused at its start ran no SNES: SNES still holds the previous solve's counts.
         iterations = int(self.snes.getIterationNumber()) if solved else 0
@@ -758,6 +763,7 @@ class NewtonSolver:
         self._refusal = ""
         self._linear_failure = 0
         self._roundoff.reset()
+        self._forcing.restore()
         if self._objective is not None:
             self._objective.reset()
         self.step_filters.min_step_fraction = 1.0
