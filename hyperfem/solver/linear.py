@@ -43,7 +43,10 @@ a fixed forcing term Newton converges linearly with rate about
 ``ksp_rtol`` once in the quadratic regime, i.e. one or two iterations more
 than exact Newton at the default tolerances, without the early over-solving
 or the late under-solving that made Eisenstat–Walker stall the energy line
-search (50 iterations without convergence in the prototype).
+search (50 iterations without convergence in the prototype). Only the step
+predicted to be the last one is solved tighter
+(:class:`~hyperfem.solver.forcing.FinalStepForcing`), so that the Krylov error
+does not cost a Newton iteration of its own.
 """
 
 from __future__ import annotations
