@@ -63,3 +63,17 @@ def test_a_stepper_run_cuts_back_or_goes_on(monkeypatch, limit):
     else:
         with pytest.raises(hf.ConvergenceError, match=r"linear solve failed \(KSP reason -3\)"):
             run.run()
+
+
+def test_a_user_preconditioner_drops_the_linear_solvers_own_options():
+    """pc_type jacobi over the direct default: no unused pc_factor_mat_solver_type left in PETSc's database."""
+    from hyperfem.solver.linear import DIRECT
+    from hyperfem.solver.options import merge_options
+
+    merged = merge_options(True, DIRECT, FAILING_KRYLOV)
+    assert merged["pc_type"] == "jacobi" and not any(k.startswith("pc_factor") for k in merged)
+    kept = merge_options(True, DIRECT, {"ksp_type": "preonly", "pc_type": DIRECT["pc_type"]})
+    assert kept["pc_factor_mat_solver_type"] == DIRECT["pc_factor_mat_solver_type"]
+    amg = {"ksp_type": "cg", "pc_type": "gamg", "pc_gamg_threshold": 0.02}
+    lu_over_amg = merge_options(True, amg, {"pc_type": "lu"})
+    assert lu_over_amg["pc_factor_mat_solver_type"] == "mumps" and "pc_gamg_threshold" not in lu_over_amg

@@ -86,7 +86,19 @@ def merge_options(
         # end at the round-off stop, which counts the identity of theta
         # (roundoff.VOLUME_REFERENCE) for that.
         defaults["snes_linesearch_atol"] = 0.0
-    return {**defaults, **linear, **(petsc_options or {})}
+    user = dict(petsc_options or {})
+    if "pc_type" in user and user["pc_type"] != linear.get("pc_type"):
+        # Another preconditioner: the linear solver's options of its own one (a factorisation's solver package,
+        # GAMG's and the field split's settings) would be left unused (PETSc's "unused database options").
+        linear = {k: v for k, v in linear.items() if not k.startswith(_PC_SPECIFIC) or k == "pc_type"}
+        if user["pc_type"] in ("lu", "cholesky"):  # PETSc's own factorisations are serial only
+            linear["pc_factor_mat_solver_type"] = "mumps"
+    return {**defaults, **linear, **user}
+
+
+_PC_SPECIFIC = ("pc_", "mg_", "fieldsplit_")
+"""Prefixes of options that belong to one preconditioner (dropped from the linear solver's when the user names
+another ``pc_type``)."""
 
 
 def clean_options(prefix: str, options: Mapping[str, object]) -> None:
