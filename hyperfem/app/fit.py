@@ -51,7 +51,10 @@ def add_fit_parser(sub: argparse._SubParsersAction) -> None:
         "fit",
         help="fit a law's parameters to homogeneous test data, or a Prony series to relaxation data (CSV)",
         description="Least-squares fit of a hyperelastic law to homogeneous test data: the response is the law's own "
-        "UFL energy (incompressible unless --bulk-modulus is given or the data have volumetric points). Prints the "
+        "UFL energy (incompressible unless --bulk-modulus is given or the data have volumetric points; the laws of two "
+        "elastic constants, hencky, saint_venant_kirchhoff, linear_elastic, fixed_corotated, ..., are always "
+        "compressible: mu and the bulk modulus from two modes or volumetric data, the lateral stretch solved from free "
+        "faces). Prints the "
         "parameters, the rms and relative errors per mode, Drucker stability over the data range and a "
         "[[material]] table (Pa) to paste into a case file. --law prony fits a Prony series (g_i, tau_i) to "
         "relaxation data instead and prints a [material.viscoelastic] table.",
@@ -73,7 +76,7 @@ def add_fit_parser(sub: argparse._SubParsersAction) -> None:
                    help="the modes to fit, comma-separated (default: every mode of the data)")
     f.add_argument("--bulk-modulus", type=positive_float, default=None, metavar="K",
                    help="fixed bulk modulus in MPa: a compressible fit (default: incompressible, or K fitted to "
-                   "volumetric data)")
+                   "volumetric data; the two-constant laws always fit K unless it is given)")
     f.add_argument("--volumetric", choices=tuple(VOLUMETRIC_LAWS), default="log",
                    help="the volumetric energy U(J) of a compressible fit and of the table (default log)")
     f.add_argument("--weighting", choices=("relative", "absolute"), default="relative",

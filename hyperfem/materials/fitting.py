@@ -57,6 +57,16 @@ range its parameter class accepts):
   exponents as constants (that function takes them as numbers, which would
   recompile at every new :math:`\alpha`).
 
+* the compressible laws of two elastic constants (:data:`_LAME_ENERGIES`: ``robust_neo_hookean``,
+  ``stable_neo_hookean``, ``saint_venant_kirchhoff``, ``linear_elastic``, ``hencky``,
+  ``saint_venant_kirchhoff_principal``, ``fixed_corotated``, ``corotational_linear``): :math:`\mu > 0` and
+  :math:`K = \lambda + 2\mu/3 > 0` (so :math:`\nu \in (-1, 1/2)`), always a *compressible* fit of the full
+  energy, the lateral stretch of each point solved from its traction-free faces; :math:`K` is fitted
+  unless ``bulk_modulus`` is given, which needs two modes (uniaxial stress alone hardly sees
+  :math:`\nu`) or volumetric data. The corotated laws take :math:`R = I`, the polar rotation of the
+  diagonal :math:`F` of every mode. The table's keys are ``mu`` and ``bulk_modulus``. ``arap``
+  (:math:`\mu\|F - R\|^2`, no volume term) is not fitted.
+
 **Least squares.** Levenberg–Marquardt with box bounds (projected steps), the
 Jacobian by forward differences of the compiled response. The residual of a
 point is :math:`w_i(P^\text{fit}_i - P_i)` with :math:`w_i = 1/|P_i|` (``weighting =
@@ -91,6 +101,13 @@ import ufl
 
 from hyperfem.errors import OutputError, ParameterError
 from hyperfem.kinematics import jacobian, right_cauchy_green
+from hyperfem.materials.corotational_linear import corotational_linear_energy
+from hyperfem.materials.fixed_corotated import fixed_corotated
+from hyperfem.materials.linear_elastic import linear_elastic
+from hyperfem.materials.robust_neo_hookean import robust_neo_hookean
+from hyperfem.materials.saint_venant_kirchhoff import saint_venant_kirchhoff
+from hyperfem.materials.stable_neo_hookean import StableNeoHookeanParameters, stable_neo_hookean
+from hyperfem.materials.principal_stretches import hencky, saint_venant_kirchhoff_principal
 from hyperfem.materials.arruda_boyce import ArrudaBoyceParameters, arruda_boyce, arruda_boyce_isochoric
 from hyperfem.materials.gent import GentParameters, gent, gent_isochoric
 from hyperfem.materials.homogeneous import MODES, Energy, HomogeneousResponse, check_mode, mode_stretches
@@ -309,7 +326,7 @@ class _Model:
     stress_like: tuple[bool, ...]
     bounds: Callable[[tuple[float, ...]], Bounds]
     starts: tuple[tuple[float, ...], ...]
-    isochoric: Energy
+    isochoric: Energy | None  # None: a compressible law without an isochoric part (always fitted compressible)
     energy: Callable[[str], Energy]
     material: Callable[[Values, float, str], Any]
     keys: Callable[[Values], dict[str, float | list[float]]]
@@ -430,6 +447,50 @@ def _veronda_westmann(terms: int, reach: float) -> _Model:
     )
 
 
+def _stable_constants(p: Any) -> StableNeoHookeanParameters:
+    """:meth:`StableNeoHookeanParameters.from_lame` of UFL constants (its checks need numbers: skipped)."""
+    constants = object.__new__(StableNeoHookeanParameters)
+    object.__setattr__(constants, "mu", 4.0 * p.mu / 3.0)
+    object.__setattr__(constants, "lmbda", p.lmbda + 5.0 * p.mu / 6.0)
+    return constants
+
+
+_LAME_ENERGIES: dict[str, Callable[[Expr, Any], Expr]] = {
+    "robust_neo_hookean": robust_neo_hookean,
+    "stable_neo_hookean": lambda F, p: stable_neo_hookean(F, _stable_constants(p)),
+    "saint_venant_kirchhoff": saint_venant_kirchhoff,
+    "linear_elastic": linear_elastic,
+    "hencky": hencky,
+    "saint_venant_kirchhoff_principal": saint_venant_kirchhoff_principal,
+    # the polar rotation of the diagonal, positive F of every mode is I
+    "fixed_corotated": lambda F, p: fixed_corotated(F, ufl.Identity(3), p),
+    "corotational_linear": lambda F, p: corotational_linear_energy(F, ufl.Identity(3), p),
+}
+r"""The compressible laws of two elastic constants, ``psi(F, LameParameters)``, fitted as :math:`\mu` and
+:math:`K = \lambda + 2\mu/3` (case-file keys ``mu``, ``bulk_modulus``)."""
+
+_LAME_K_START = 2.0
+r""":math:`K/\mu` of the start of a compressible two-constant law (:math:`\nu \approx 0.29`)."""
+
+
+def _lame_law(law: str) -> Callable[[int, float], _Model]:
+    energy_of = _LAME_ENERGIES[law]
+
+    def energy(volumetric: str) -> Energy:
+        if volumetric != "log":
+            raise ParameterError(f"fit: {law} has its own volume term; leave volumetric at 'log'")
+        return lambda F, c: energy_of(F, _ns(mu=c["mu"], lmbda=c["K"] - 2.0 * c["mu"] / 3.0))
+
+    def factory(terms: int, reach: float) -> _Model:
+        return _Model(
+            law, ("mu",), (True,), _fixed((1e-12,), (math.inf,)), ((1.0,),), None, energy,
+            lambda v, K, vol: LameParameters(mu=v["mu"], lmbda=K - 2.0 * v["mu"] / 3.0),
+            lambda v: {"mu": v["mu"]},
+        )
+
+    return factory
+
+
 _OGDEN_EXPONENTS = (1.3, 5.0, -2.0, 3.0, -4.0, 8.0, -1.0, 2.0)
 _OGDEN_STARTS = {1: ((2.0,), (3.0,)), 2: ((1.3, 5.0), (2.0, -2.0), (3.0, -1.0))}
 
@@ -487,18 +548,17 @@ _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "arruda_boyce": _arruda_boyce,
     "veronda_westmann": _veronda_westmann,
     "ogden": _ogden,
+    **{law: _lame_law(law) for law in _LAME_ENERGIES},
 }
 FIT_LAWS: tuple[str, ...] = (*_MODELS, "prony")
 """The laws :func:`fit` knows (their case-file names; ``prony``: a Prony series to relaxation data)."""
 
 _FIBRE = ("an anisotropic fibre law: the homogeneous modes here are those of an isotropic law, and its response "
           "needs the fibre directions of each test")
-_COMPRESSIBLE = "a compressible law of two elastic constants without an isochoric part"
 _NOT_FITTED = {
     **dict.fromkeys(("holzapfel_gasser_ogden", "weiss", "fung_orthotropic", "muscle"), _FIBRE),
-    **dict.fromkeys(("robust_neo_hookean", "stable_neo_hookean", "saint_venant_kirchhoff", "linear_elastic",
-                     "fixed_corotated", "corotational_linear", "arap", "hencky", "saint_venant_kirchhoff_principal"),
-                    _COMPRESSIBLE),
+    "arap": "mu |F - R|^2 has no volume term (one constant, lateral stretch 1): fit linear_elastic or "
+            "fixed_corotated and keep mu",
 }
 """Case-file laws :func:`fit` does not fit, and why (their error names the reason, not an unknown law)."""
 
@@ -574,6 +634,7 @@ def _response(law: str, terms: int, incompressible: bool, volumetric: str) -> Ho
     """The compiled response of a law (the isochoric part, or the full energy with ``K`` last), kept for reuse."""
     model = _MODELS[law](terms, 1.0)
     if incompressible:
+        assert model.isochoric is not None  # fit() fits a law without an isochoric part compressible
         return HomogeneousResponse(model.isochoric, model.names, incompressible=True)
     return HomogeneousResponse(model.energy(volumetric), (*model.names, "K"), incompressible=False)
 
@@ -673,7 +734,11 @@ class FitResult:
             "neo_hookean": neo_hookean, "mooney_rivlin": mooney_rivlin, "yeoh": yeoh,
             "reduced_polynomial": reduced_polynomial, "gent": gent, "arruda_boyce": arruda_boyce,
             "veronda_westmann": veronda_westmann, "ogden": ogden,
+            **{k: v for k, v in _LAME_ENERGIES.items() if k not in ("fixed_corotated", "corotational_linear")},
         }
+        if self.law not in laws:  # the energy of a diagonal F takes R = I, not a finite-element model's
+            raise ParameterError(f"FitResult.energy: {self.law} needs the polar rotation of F: build it from "
+                                 "the fitted material (hf.materials.FixedCorotated / corotational_linear)")
         return laws[self.law](F, self.material_with(bulk_modulus))
 
     def nominal_stress(self, mode: str, stretch: Sequence[float] | np.ndarray,
@@ -700,7 +765,7 @@ class FitResult:
         """The law's own keys of a case-file ``[[material]]`` with the fitted values (data stress unit), K included."""
         model = _MODELS[self.law](self.terms or 1, 1.0)
         keys: dict[str, float | list[float] | str] = dict(model.keys(self.parameters))
-        keys["bulk_modulus" if self.law == "neo_hookean" else "K"] = self.bulk_modulus
+        keys["bulk_modulus" if self.law == "neo_hookean" or self.law in _LAME_ENERGIES else "K"] = self.bulk_modulus
         if self.volumetric != "log":
             keys["volumetric"] = self.volumetric
         return keys
@@ -983,13 +1048,19 @@ def fit(
         check_positive("bulk_modulus", bulk_modulus, "fit")
     n_terms = terms if terms is not None else _TERMS.get(law)
     curves = _select(data, modes, law)
-    fit_K = "volumetric" in curves and bulk_modulus is None
-    incompressible = bulk_modulus is None and not fit_K
     model = _MODELS[law](n_terms or 1, _reach(curves))
+    compressible_only = model.isochoric is None
+    fit_K = ("volumetric" in curves or compressible_only) and bulk_modulus is None
+    incompressible = bulk_modulus is None and not fit_K
+    if compressible_only and fit_K and len(curves) == 1 and "volumetric" not in curves:
+        raise ParameterError(f"fit: {law} is compressible and one {next(iter(curves))} curve does not determine "
+                             "both mu and the bulk modulus: add a second mode (volumetric, equibiaxial, "
+                             "pure_shear, uniaxial) or give bulk_modulus")
 
     names = model.names + (("K",) if fit_K else ())
     stress_like = np.array(model.stress_like + ((True,) if fit_K else ()))
-    starts = [s + ((100.0,) if fit_K else ()) for s in model.starts]
+    k_start = _LAME_K_START if compressible_only else 100.0
+    starts = [s + ((k_start,) if fit_K else ()) for s in model.starts]
     fixed = {k: float(v) for k, v in (initial or {}).items()}
     unknown = [k for k in fixed if k not in names]
     if unknown:
