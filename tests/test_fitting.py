@@ -235,6 +235,78 @@ def test_fit_recovers_a_two_constant_law(law):
     np.testing.assert_allclose(fixed.parameters["mu"], 0.7, rtol=1e-6)
 
 
+HGO = {"mu": 0.02, "k1": 0.3, "k2": 2.0, "kappa": 0.1}  # MPa, an arterial layer
+
+
+def _hgo_csv(path):
+    """Uniaxial and equibiaxial data of HGO at fibre angles 30 and 60 degrees, as a CSV file."""
+    response = fitting._response("holzapfel_gasser_ogden", 1, True, "log")
+    response.set_parameters(HGO)
+    lines = ["mode,fibre_angle_deg,stretch,nominal_stress_MPa"]
+    for angle in (30.0, 60.0):
+        for mode, lam in (("uniaxial", np.linspace(1.02, 1.25, 8)), ("equibiaxial", np.linspace(1.02, 1.15, 7))):
+            P = response.nominal_stress(mode, lam, np.radians(angle))
+            lines += [f"{mode},{angle:g},{float(x)!r},{float(y)!r}" for x, y in zip(lam, P, strict=True)]
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.barrier()
+    return path
+
+
+def test_hgo_uniaxial_lateral_faces_are_free():
+    """Fibres at 30 degrees: the two lateral stretches differ, det F = 1 and tau_22 = tau_33 (no lateral load)."""
+    response = fitting._response("holzapfel_gasser_ogden", 1, True, "log")
+    response.set_parameters(HGO)
+    lam = np.linspace(1.05, 1.3, 6)
+    states = response.states("uniaxial", lam, np.radians(30.0))
+    assert (states[:, 1] < 0.95 * states[:, 2]).all()  # the fibres pull the width in, the thickness less
+    np.testing.assert_allclose(np.prod(states, axis=1), 1.0, rtol=1e-12)
+    tau = states * response.principal_stress(states, np.radians(30.0))
+    np.testing.assert_allclose(tau[:, 1], tau[:, 2], rtol=1e-8, atol=1e-9 * np.abs(tau).max())
+    iso = response.states("uniaxial", lam, np.radians(80.0))  # fibres in compression: isotropic, a = lam^-1/2
+    np.testing.assert_allclose(iso[:, 1], lam**-0.5, rtol=1e-8)
+
+
+def test_fit_recovers_hgo_from_two_angles(shared_tmp):
+    """mu, k1, k2, kappa come back from uniaxial and equibiaxial tests at 30 and 60 degrees (a CSV with
+    fibre_angle_deg); the [[material]] with its [fibres] and [second_fibres] reads back as a case file."""
+    from hyperfem.app.sections import check_fibres, check_materials
+
+    curves = read_curves(_hgo_csv(shared_tmp / "hgo.csv"))
+    assert list(curves) == ["uniaxial@30", "uniaxial@60", "equibiaxial@30", "equibiaxial@60"]
+    result = fit("holzapfel_gasser_ogden", curves)
+    assert result.incompressible and result.converged and result.stable
+    np.testing.assert_allclose([result.parameters[k] for k in HGO], list(HGO.values()), rtol=1e-6)
+    assert set(result.errors) == set(curves) and max(e.relative_rms for e in result.errors.values()) < 1e-6
+    np.testing.assert_allclose(result.nominal_stress("uniaxial", curves["uniaxial@60"].stretch, angle=60.0),
+                               curves["uniaxial@60"].stress, rtol=1e-6)
+    table = tomllib.loads(result.case_table(stress_factor=1e6))
+    (material,) = check_materials(table["material"], mixed=True, has_fibres=True, has_second_fibres=True)
+    np.testing.assert_allclose([material.parameters[k] for k in HGO],
+                               [HGO["mu"] * 1e6, HGO["k1"] * 1e6, HGO["k2"], HGO["kappa"]], rtol=1e-5)
+    check_fibres(table["fibres"])
+    np.testing.assert_allclose(table["second_fibres"]["direction"], [np.cos(np.pi / 6), -0.5, 0.0], rtol=1e-5)
+    summary = dispatch(["fit", str(shared_tmp / "hgo.csv"), "--law", "holzapfel_gasser_ogden", "--json"])
+    np.testing.assert_allclose(summary["parameters"]["k2"], HGO["k2"], rtol=1e-6)
+    assert set(summary["rms_MPa"]) == set(curves)
+
+
+def test_fibre_angle_refusals(shared_tmp):
+    curves = read_curves(_hgo_csv(shared_tmp / "hgo_refusals.csv"))
+    cases = [
+        ("holzapfel_gasser_ogden", treloar_data(), {}, "fit: holzapfel_gasser_ogden needs the fibre angle of every "
+                                                       "curve (a column fibre_angle_deg); uniaxial has none"),
+        ("holzapfel_gasser_ogden", curves, {"bulk_modulus": 1.0}, "fit: holzapfel_gasser_ogden is fitted "
+                                                                  "incompressible"),
+        ("yeoh", curves, {}, "fit: yeoh is isotropic: the fibre angle (fibre_angle_deg, uniaxial@30) is for"),
+        ("weiss", curves, {}, "fit: law 'weiss' is not fitted to test data (a fibre law with one family"),
+    ]
+    for law, data, kwargs, expected in cases:
+        with pytest.raises(ParameterError) as info:
+            fit(law, data, **kwargs)
+        assert expected in str(info.value), str(info.value)
+
+
 def test_unstable_fit_says_where():
     """Veronda-Westmann (a skin law) on Treloar: its -c1 c2/2 (I2bar - 3) term loses Drucker stability early."""
     result = fit("veronda_westmann", treloar_data())
@@ -360,8 +432,10 @@ CLI_ERRORS = {
     "law": ([str(fitting.TRELOAR), "--law", "mooney"], "fit: unknown law 'mooney' (did you mean 'mooney_rivlin'?)"),
     "mode": ([str(fitting.TRELOAR), "--law", "yeoh", "--modes", "uniaxial,equi_biaxial"],
              "fit: unknown mode 'equi_biaxial' (did you mean 'equibiaxial'?)"),
-    "fibre law": ([str(fitting.TRELOAR), "--law", "holzapfel_gasser_ogden"],
-                  "fit: law 'holzapfel_gasser_ogden' is not fitted to test data (an anisotropic fibre law"),
+    "fibre law": ([str(fitting.TRELOAR), "--law", "fung_orthotropic"],
+                  "fit: law 'fung_orthotropic' is not fitted to test data (a fibre law with one family"),
+    "no angle": ([str(fitting.TRELOAR), "--law", "holzapfel_gasser_ogden"],
+                 "fit: holzapfel_gasser_ogden needs the fibre angle of every curve (a column fibre_angle_deg)"),
     "one mode, two constants": ([str(fitting.TRELOAR), "--law", "hencky", "--modes", "pure_shear"],
                                 "fit: hencky is compressible and one pure_shear curve does not determine both"),
 }

@@ -60,7 +60,9 @@ def add_fit_parser(sub: argparse._SubParsersAction) -> None:
         "relaxation data instead and prints a [material.viscoelastic] table.",
         epilog="DATA.csv: a header with the columns mode,stretch,nominal_stress_MPa (others ignored); mode one of "
         f"{', '.join(MODES)}; stretch the stretch along the load (volumetric: J^(1/3)); nominal_stress_MPa the "
-        "first Piola-Kirchhoff stress P11 in MPa (force per undeformed area). Example: hyperfem fit "
+        "first Piola-Kirchhoff stress P11 in MPa (force per undeformed area); holzapfel_gasser_ogden needs a column "
+        "fibre_angle_deg (the two fibre families at +-angle to the load in the 1-2 plane; each mode and angle a "
+        "curve; weiss, fung_orthotropic, muscle and arap are not fitted). Example: hyperfem fit "
         "hyperfem/materials/data/treloar1944.csv --law ogden --terms 3 --png fit.png. --law prony: relaxation data, "
         "columns time_s (s from the start of the loading) and nominal_stress_MPa (the stress at a held strain) or "
         "relaxation_modulus (g(t) = G(t)/G(0)); the strain ramps linearly over --ramp-time, then is held. One file may "

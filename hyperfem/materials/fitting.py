@@ -18,6 +18,14 @@ modes of :mod:`~hyperfem.materials.homogeneous`), ``stretch`` (the stretch
 first Piola–Kirchhoff — stress :math:`P_{11}`, force per undeformed area, in MPa;
 volumetric: :math:`P_{11} = -p\,J^{2/3}` for a pressure :math:`p`); other
 columns are ignored. The fitted moduli are in the data's unit (MPa).
+An optional column ``fibre_angle_deg`` (:data:`ANGLE_COLUMN`) gives the fibre angle
+:math:`\theta` of each test of a fibre-reinforced specimen, in degrees in :math:`[-90, 90]`: the
+angle between the fibres and the loading direction :math:`e_1`, in the :math:`e_1`–:math:`e_2`
+plane, with ``holzapfel_gasser_ogden``'s two families at :math:`\pm\theta` (the usual
+symmetric arrangement: the test axes are axes of symmetry, a test does not shear).
+Each (mode, angle) is then its own curve, keyed ``mode@angle`` (``uniaxial@30``),
+with its own rms; an equibiaxial test's :math:`P_{22}` is the row of the angle
+:math:`90 - \theta`.
 The same file may hold relaxation tests: rows of mode ``relaxation`` with a
 column ``time_s`` (s from the start of the loading), ``stretch`` the uniaxial
 stretch held and ``nominal_stress_MPa`` the stress at that time. The
@@ -57,6 +65,15 @@ range its parameter class accepts):
   exponents as constants (that function takes them as numbers, which would
   recompile at every new :math:`\alpha`).
 
+* ``holzapfel_gasser_ogden`` (curves with a fibre angle, incompressible only): :math:`\mu > 0`,
+  :math:`k_1 \ge 0`, :math:`k_2 > 0`, :math:`\kappa \in [0, 1/3]`, the tension-only switch ``strain``
+  (its default); the uniaxial lateral stretches, which differ, from the free faces
+  (:meth:`~hyperfem.materials.homogeneous.HomogeneousResponse.states`). Two angles (or
+  uniaxial with equibiaxial) separate the matrix from the fibres. The table adds
+  ``[fibres]`` and ``[second_fibres]`` (constant, :math:`(\cos\theta, \pm\sin\theta, 0)` of the
+  first angle: the directions of the geometry replace them). ``weiss`` (one family) and
+  ``fung_orthotropic`` (orthotropic axes) are not fitted: at an angle their tests
+  shear, which these homogeneous modes do not; ``muscle``'s active part is no passive property;
 * the compressible laws of two elastic constants (:data:`_LAME_ENERGIES`: ``robust_neo_hookean``,
   ``stable_neo_hookean``, ``saint_venant_kirchhoff``, ``linear_elastic``, ``hencky``,
   ``saint_venant_kirchhoff_principal``, ``fixed_corotated``, ``corotational_linear``): :math:`\mu > 0` and
@@ -110,6 +127,10 @@ from hyperfem.materials.stable_neo_hookean import StableNeoHookeanParameters, st
 from hyperfem.materials.principal_stretches import hencky, saint_venant_kirchhoff_principal
 from hyperfem.materials.arruda_boyce import ArrudaBoyceParameters, arruda_boyce, arruda_boyce_isochoric
 from hyperfem.materials.gent import GentParameters, gent, gent_isochoric
+from hyperfem.materials.holzapfel_gasser_ogden import (
+    HolzapfelGasserOgdenParameters,
+    holzapfel_gasser_ogden_isochoric,
+)
 from hyperfem.materials.homogeneous import MODES, Energy, HomogeneousResponse, check_mode, mode_stretches
 from hyperfem.materials.mooney_rivlin import MooneyRivlinParameters, mooney_rivlin, mooney_rivlin_isochoric
 from hyperfem.materials.neo_hookean import neo_hookean, neo_hookean_isochoric
@@ -129,12 +150,13 @@ from hyperfem.materials.yeoh import (
     reduced_polynomial_isochoric,
     yeoh,
 )
-from hyperfem.validation import check_positive
+from hyperfem.validation import check_positive, is_finite_number
 
 if TYPE_CHECKING:  # prony_fit imports this module's helpers: fit() imports it when called
     from hyperfem.materials.prony_fit import PronyFit
 
 __all__ = [
+    "ANGLE_COLUMN",
     "BULK_RATIO",
     "COLUMNS",
     "RELAXATION_MODE",
@@ -155,6 +177,9 @@ Expr = ufl.core.expr.Expr
 
 COLUMNS = ("mode", "stretch", "nominal_stress_MPa")
 """The columns :func:`read_curves` needs (module docstring)."""
+
+ANGLE_COLUMN = "fibre_angle_deg"
+"""The optional column of the fibre angle to the loading direction, in degrees (module docstring)."""
 
 RELAXATION_MODE = "relaxation"
 """The mode of relaxation rows (with a ``time_s`` column) in a file of :func:`read_curves`: fitted by ``prony``."""
@@ -189,11 +214,23 @@ class Curve:
         mode: A mode of :data:`~hyperfem.materials.homogeneous.MODES`.
         stretch: Stretches :math:`\\lambda > 0` (dimensionless).
         stress: Nominal stresses :math:`P_{11}` (the data's unit, MPa for :func:`read_curves`).
+        angle: The fibre angle in degrees (column ``fibre_angle_deg``, the fibre laws), else ``None``.
     """
 
     mode: str
     stretch: np.ndarray
     stress: np.ndarray
+    angle: float | None = None
+
+    @property
+    def label(self) -> str:
+        """The key of the curve: its mode, ``mode@angle`` with a fibre angle (``uniaxial@30``)."""
+        return self.mode if self.angle is None else f"{self.mode}@{self.angle:g}"
+
+    @property
+    def angle_rad(self) -> float | None:
+        """The fibre angle in radians (``None`` without)."""
+        return None if self.angle is None else math.radians(self.angle)
 
     def __post_init__(self) -> None:
         check_mode(self.mode)
@@ -204,6 +241,9 @@ class Curve:
                                  f"{lam.size} and {P.size}")
         if not (np.isfinite(lam).all() and np.isfinite(P).all() and (lam > 0).all()):
             raise ParameterError(f"Curve {self.mode}: stretches must be finite and > 0, stresses finite")
+        if self.angle is not None and not (is_finite_number(self.angle) and -90.0 <= self.angle <= 90.0):
+            raise ParameterError(f"Curve {self.mode}: the fibre angle must be a number of degrees in [-90, 90], "
+                                 f"got {self.angle!r}")
         order = np.argsort(lam, kind="stable")
         object.__setattr__(self, "stretch", lam[order])
         object.__setattr__(self, "stress", P[order])
@@ -264,7 +304,8 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
                 f"(found: {', '.join(header) or 'none'})"
             )
         index[column] = header.index(column)
-    points: dict[str, list[tuple[float, float]]] = {}
+    angle_column = header.index(ANGLE_COLUMN) if ANGLE_COLUMN in header else None
+    points: dict[tuple[str, float | None], list[tuple[float, float]]] = {}
     relaxation = 0
     for line, row in enumerate(rows[1:], start=2):
         if not any(cell.strip() for cell in row):
@@ -291,14 +332,24 @@ def read_curves(path: str | Path) -> dict[str, Curve]:
             values.append(value)
         if values[0] <= 0:
             raise ParameterError(f"{where}: stretch must be > 0, got {values[0]!r}")
-        points.setdefault(mode, []).append((values[0], values[1]))
+        angle = None
+        if angle_column is not None and len(row) > angle_column and row[angle_column].strip():
+            text = row[angle_column].strip()
+            try:
+                angle = float(text)
+            except ValueError:
+                raise ParameterError(f"{where}: {ANGLE_COLUMN} must be a number, got {text!r}") from None
+            if not (math.isfinite(angle) and -90.0 <= angle <= 90.0):
+                raise ParameterError(f"{where}: {ANGLE_COLUMN} must be in [-90, 90] degrees, got {text!r}")
+        points.setdefault((mode, angle), []).append((values[0], values[1]))
     if not points and relaxation:
         raise ParameterError(f"fit: {path}: only relaxation rows (mode {RELAXATION_MODE}): fit them with law 'prony' "
                              f"(hyperfem fit {path.name} --law prony)")
     if not points:
         raise ParameterError(f"fit: {path} has no data rows")
-    return {m: Curve(m, np.array([p[0] for p in points[m]]), np.array([p[1] for p in points[m]]))
-            for m in MODES if m in points}
+    curves = [Curve(m, np.array([p[0] for p in v]), np.array([p[1] for p in v]), a)
+              for mode in MODES for (m, a), v in points.items() if m == mode]
+    return {c.label: c for c in curves}
 
 
 def treloar_data() -> dict[str, Curve]:
@@ -330,6 +381,7 @@ class _Model:
     energy: Callable[[str], Energy]
     material: Callable[[Values, float, str], Any]
     keys: Callable[[Values], dict[str, float | list[float]]]
+    fibres: bool = False  # the energy reads constants["fibre_angle"]: incompressible fits of curves with angles
 
 
 def _fixed(lower: tuple[float, ...], upper: tuple[float, ...]) -> Callable[[tuple[float, ...]], Bounds]:
@@ -539,6 +591,38 @@ def _ogden(terms: int, reach: float) -> _Model:
     )
 
 
+def _hgo_directions(c: Mapping[str, Any]) -> tuple[Expr, Expr]:
+    """HGO's two families at +-theta to e1 in the e1-e2 plane."""
+    theta = c["fibre_angle"]
+    return (ufl.as_vector([ufl.cos(theta), ufl.sin(theta), 0.0]),
+            ufl.as_vector([ufl.cos(theta), -ufl.sin(theta), 0.0]))
+
+
+def _holzapfel_gasser_ogden(terms: int, reach: float) -> _Model:
+    def isochoric(F: Expr, c: Mapping[str, Any]) -> Expr:
+        a1, a2 = _hgo_directions(c)
+        return holzapfel_gasser_ogden_isochoric(
+            F, a1, a2, _ns(mu=c["mu"], k1=c["k1"], k2=c["k2"], kappa=c["kappa"], switch="strain", smoothing=0.0))
+
+    def energy(vol: str) -> Energy:
+        raise ParameterError("fit: holzapfel_gasser_ogden is fitted incompressible (no bulk_modulus, no volumetric "
+                             "data)")
+
+    return _Model(
+        "holzapfel_gasser_ogden", ("mu", "k1", "k2", "kappa"), (True, True, False, False),
+        _fixed((1e-12, 0.0, 1e-6, 0.0), (math.inf, math.inf, 1e3, 1.0 / 3.0)),
+        ((1.0, 5.0, 1.0, 0.1), (1.0, 20.0, 5.0, 0.0), (1.0, 1.0, 0.2, 0.2)),
+        isochoric, energy,
+        lambda v, K, vol: HolzapfelGasserOgdenParameters(mu=v["mu"], k1=v["k1"], k2=v["k2"], kappa=v["kappa"],
+                                                         K=K, volumetric=vol),
+        lambda v: {"mu": v["mu"], "k1": v["k1"], "k2": v["k2"], "kappa": v["kappa"]},
+        fibres=True,
+    )
+
+
+_FIBRE_TABLES = {"holzapfel_gasser_ogden": "hgo"}
+"""The fitted fibre laws and the arrangement of their [fibres] tables (``hgo``: two families at +-theta)."""
+
 _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "neo_hookean": _neo_hookean,
     "mooney_rivlin": _mooney_rivlin,
@@ -549,14 +633,16 @@ _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "veronda_westmann": _veronda_westmann,
     "ogden": _ogden,
     **{law: _lame_law(law) for law in _LAME_ENERGIES},
+    "holzapfel_gasser_ogden": _holzapfel_gasser_ogden,
 }
 FIT_LAWS: tuple[str, ...] = (*_MODELS, "prony")
 """The laws :func:`fit` knows (their case-file names; ``prony``: a Prony series to relaxation data)."""
 
-_FIBRE = ("an anisotropic fibre law: the homogeneous modes here are those of an isotropic law, and its response "
-          "needs the fibre directions of each test")
+_FIBRE = ("a fibre law with one family or orthotropic axes: a test at an angle shears, which the homogeneous "
+          "modes here do not (holzapfel_gasser_ogden, two families at +-theta, is fitted)")
 _NOT_FITTED = {
-    **dict.fromkeys(("holzapfel_gasser_ogden", "weiss", "fung_orthotropic", "muscle"), _FIBRE),
+    **dict.fromkeys(("weiss", "fung_orthotropic"), _FIBRE),
+    "muscle": "its active part is not a property of passive tests",
     "arap": "mu |F - R|^2 has no volume term (one constant, lateral stretch 1): fit linear_elastic or "
             "fixed_corotated and keep mu",
 }
@@ -635,7 +721,7 @@ def _response(law: str, terms: int, incompressible: bool, volumetric: str) -> Ho
     model = _MODELS[law](terms, 1.0)
     if incompressible:
         assert model.isochoric is not None  # fit() fits a law without an isochoric part compressible
-        return HomogeneousResponse(model.isochoric, model.names, incompressible=True)
+        return HomogeneousResponse(model.isochoric, model.names, incompressible=True, fibres=model.fibres)
     return HomogeneousResponse(model.energy(volumetric), (*model.names, "K"), incompressible=False)
 
 
@@ -736,13 +822,16 @@ class FitResult:
             "veronda_westmann": veronda_westmann, "ogden": ogden,
             **{k: v for k, v in _LAME_ENERGIES.items() if k not in ("fixed_corotated", "corotational_linear")},
         }
+        if self.law in _FIBRE_TABLES:
+            raise ParameterError(f"FitResult.energy: {self.law} needs its fibre directions: "
+                                 f"hf.materials.{self.law}(F, a01, a02, result.material)")
         if self.law not in laws:  # the energy of a diagonal F takes R = I, not a finite-element model's
             raise ParameterError(f"FitResult.energy: {self.law} needs the polar rotation of F: build it from "
                                  "the fitted material (hf.materials.FixedCorotated / corotational_linear)")
         return laws[self.law](F, self.material_with(bulk_modulus))
 
     def nominal_stress(self, mode: str, stretch: Sequence[float] | np.ndarray,
-                       bulk_modulus: float | None = None) -> np.ndarray:
+                       bulk_modulus: float | None = None, angle: float | None = None) -> np.ndarray:
         """The fitted law's nominal stress :math:`P_{11}` along ``mode``.
 
         Args:
@@ -751,6 +840,7 @@ class FitResult:
             bulk_modulus: ``None``: the response as fitted (incompressible, or compressible with the
                 fitted or given K); a number: the compressible law with this K (what a finite-element
                 model of :meth:`energy` with it gives).
+            angle: The fibre angle in degrees (the fibre laws).
         """
         compressible = bulk_modulus is not None or not self.incompressible
         response = _response(self.law, self.terms or 1, not compressible, self.volumetric)
@@ -759,7 +849,7 @@ class FitResult:
             values.append(self.bulk_modulus if bulk_modulus is None else float(bulk_modulus))
         response.set_parameters(values)
         with np.errstate(all="ignore"):
-            return response.nominal_stress(mode, stretch)
+            return response.nominal_stress(mode, stretch, None if angle is None else math.radians(angle))
 
     def keys(self) -> dict[str, float | list[float] | str]:
         """The law's own keys of a case-file ``[[material]]`` with the fitted values (data stress unit), K included."""
@@ -778,7 +868,8 @@ class FitResult:
             unit: Name of the resulting stress unit, for the comment.
         """
         check_positive("stress_factor", stress_factor, "FitResult.case_table")
-        dimensionless = {"Jm", "lambda_m", "alpha"} | ({"c2"} if self.law == "veronda_westmann" else set())
+        dimensionless = ({"Jm", "lambda_m", "alpha"} | ({"c2"} if self.law == "veronda_westmann" else set())
+                         | ({"k2", "kappa"} if self.law == "holzapfel_gasser_ogden" else set()))
         kind = "incompressible" if self.incompressible else "compressible"
         lines = [f"# {self.label} fitted to {', '.join(self.data)} ({kind}, {self.weighting} least squares); "
                  f"moduli in {unit}"]
@@ -794,6 +885,15 @@ class FitResult:
                 lines.append(f"{key} = [{', '.join(_number(v * scale) for v in value)}]")
             else:
                 lines.append(f"{key} = {_number(value * scale)}")
+        if self.law in _FIBRE_TABLES:
+            angles = sorted({c.angle for c in self.data.values() if c.angle is not None})
+            theta = math.radians(angles[0])
+            lines += [f"# the fibres of a specimen with {ANGLE_COLUMN} = {angles[0]:g} (fitted: "
+                      f"{', '.join(f'{a:g}' for a in angles)}); the two families at +-theta to x in the x-y plane: "
+                      "set them to your geometry's", "[fibres]", 'type = "constant"',
+                      f"direction = [{_number(math.cos(theta))}, {_number(math.sin(theta))}, 0.0]",
+                      "[second_fibres]", 'type = "constant"',
+                      f"direction = [{_number(math.cos(theta))}, {_number(-math.sin(theta))}, 0.0]"]
         return "\n".join(lines) + "\n"
 
     def to_json(self) -> dict[str, Any]:
@@ -826,9 +926,10 @@ class FitResult:
                  f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations")
         lines = [f"{self.label}, {kind}, {self.weighting} least squares ({state})"]
         lines += [f"  {name:<10} {value: .6g}" for name, value in self.parameters.items()]
-        lines.append(f"  {'mode':<12} {'points':>6} {'rms [' + unit + ']':>12} {'rel. rms':>9} {'max rel.':>9}")
+        w = max([12, *(len(m) for m in self.errors)])
+        lines.append(f"  {'mode':<{w}} {'points':>6} {'rms [' + unit + ']':>12} {'rel. rms':>9} {'max rel.':>9}")
         for mode, e in self.errors.items():
-            lines.append(f"  {mode:<12} {e.points:>6} {e.rms:>12.4g} {e.relative_rms:>9.2%} {e.max_relative:>9.2%}")
+            lines.append(f"  {mode:<{w}} {e.points:>6} {e.rms:>12.4g} {e.relative_rms:>9.2%} {e.max_relative:>9.2%}")
         lines.append("  Drucker stable over the data range" if self.stable else
                      "  Drucker stability lost: " + ", ".join(f"{s.mode} at stretch {s.stretch:.4g}"
                                                               for s in self.stability_lost))
@@ -849,13 +950,14 @@ def _select(data: object, modes: Sequence[str] | None, law: str) -> dict[str, Cu
     elif isinstance(data, Mapping):
         curves = dict(data)
     elif isinstance(data, Sequence) and all(isinstance(c, Curve) for c in data):
-        curves = {c.mode: c for c in data}
+        curves = {c.label: c for c in data}
     else:
         raise ParameterError(f"fit: data must be curves by mode, a sequence of Curve or a CSV path, got "
                              f"{type(data).__name__} (relaxation data: law 'prony')")
     for name, curve in curves.items():
-        if not isinstance(curve, Curve) or curve.mode != name:
-            raise ParameterError(f"fit: data must map each mode to its Curve, got {name!r}: {curve!r}")
+        if not isinstance(curve, Curve) or curve.label != name:
+            raise ParameterError(f"fit: data must map each mode (mode@angle with a fibre angle) to its Curve, got "
+                                 f"{name!r}: {curve!r}")
     if modes is None:
         return curves
     if isinstance(modes, str):
@@ -867,9 +969,10 @@ def _select(data: object, modes: Sequence[str] | None, law: str) -> dict[str, Cu
         if mode not in MODES:
             raise ParameterError(f"fit: unknown mode {mode!r}{_did_you_mean(str(mode), list(MODES))}; "
                                  f"modes: {', '.join(MODES)}")
-        if mode not in curves:
+        chosen = {k: c for k, c in curves.items() if c.mode == mode}
+        if not chosen:
             raise ParameterError(f"fit: no {mode} data (the data have {', '.join(curves)})")
-        selected[mode] = curves[mode]
+        selected.update(chosen)
     if not selected:
         raise ParameterError("fit: no mode selected")
     return selected
@@ -878,9 +981,9 @@ def _select(data: object, modes: Sequence[str] | None, law: str) -> dict[str, Cu
 def _reach(curves: Mapping[str, Curve]) -> float:
     r"""The largest :math:`\bar I_1 - 3` of the data (incompressible kinematics)."""
     reach = 0.0
-    for mode, curve in curves.items():
-        if mode in ("uniaxial", "equibiaxial", "pure_shear"):
-            reach = max(reach, float(np.max(np.sum(mode_stretches(mode, curve.stretch) ** 2, axis=1) - 3.0)))
+    for curve in curves.values():
+        if curve.mode in ("uniaxial", "equibiaxial", "pure_shear"):
+            reach = max(reach, float(np.max(np.sum(mode_stretches(curve.mode, curve.stretch) ** 2, axis=1) - 3.0)))
     return reach
 
 
@@ -915,16 +1018,17 @@ def _stability_and_curves(
     lost: list[StabilityLoss] = []
     smooth: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     with np.errstate(all="ignore"):
-        for mode, curve in curves.items():
+        for mode, curve in curves.items():  # mode: the curve's label
             first, last = min(1.0, float(curve.stretch[0])), max(1.0, float(curve.stretch[-1]))
             grid = np.unique(np.concatenate([np.linspace(first, last, _STABILITY_POINTS), [1.0]]))
-            bad = ~(response.drucker(mode, grid) > 0.0)  # NaN: no finite stress, not stable either
+            # NaN: no finite stress, not stable either
+            bad = ~(response.drucker(curve.mode, grid, curve.angle_rad) > 0.0)
             for side in (grid > 1.0, grid < 1.0):
                 where = np.flatnonzero(bad & side)
                 if where.size:
                     lost.append(StabilityLoss(mode, float(grid[where[np.argmin(np.abs(grid[where] - 1.0))]])))
             stretch = np.linspace(first, last, _CURVE_POINTS)
-            smooth[mode] = (stretch, response.nominal_stress(mode, stretch))
+            smooth[mode] = (stretch, response.nominal_stress(curve.mode, stretch, curve.angle_rad))
     return tuple(lost), smooth
 
 
@@ -1050,9 +1154,21 @@ def fit(
     curves = _select(data, modes, law)
     model = _MODELS[law](n_terms or 1, _reach(curves))
     compressible_only = model.isochoric is None
-    fit_K = ("volumetric" in curves or compressible_only) and bulk_modulus is None
+    angled = [k for k, c in curves.items() if c.angle is not None]
+    if model.fibres:
+        plain = [k for k, c in curves.items() if c.angle is None]
+        if plain:
+            raise ParameterError(f"fit: {law} needs the fibre angle of every curve (a column {ANGLE_COLUMN}); "
+                                 f"{plain[0]} has none")
+        if bulk_modulus is not None or any(c.mode == "volumetric" for c in curves.values()):
+            raise ParameterError(f"fit: {law} is fitted incompressible (no bulk_modulus, no volumetric data)")
+    elif angled:
+        raise ParameterError(f"fit: {law} is isotropic: the fibre angle ({ANGLE_COLUMN}, {angled[0]}) is for "
+                             f"the fibre law holzapfel_gasser_ogden")
+    has_volumetric = any(c.mode == "volumetric" for c in curves.values())
+    fit_K = (has_volumetric or compressible_only) and bulk_modulus is None
     incompressible = bulk_modulus is None and not fit_K
-    if compressible_only and fit_K and len(curves) == 1 and "volumetric" not in curves:
+    if compressible_only and fit_K and len(curves) == 1 and not has_volumetric:
         raise ParameterError(f"fit: {law} is compressible and one {next(iter(curves))} curve does not determine "
                              "both mu and the bulk modulus: add a second mode (volumetric, equibiaxial, "
                              "pure_shear, uniaxial) or give bulk_modulus")
@@ -1075,7 +1191,7 @@ def fit(
     def evaluate(x: np.ndarray) -> dict[str, np.ndarray]:
         response.set_parameters([*x, K_fixed] if K_fixed is not None else x)
         with np.errstate(all="ignore"):
-            return {mode: response.nominal_stress(mode, c.stretch) for mode, c in curves.items()}
+            return {key: response.nominal_stress(c.mode, c.stretch, c.angle_rad) for key, c in curves.items()}
 
     target = np.concatenate([c.stress for c in curves.values()])
     weights = _weights(curves, weighting)
@@ -1166,7 +1282,7 @@ def plot_fits(results: Sequence[FitResult], path: str | Path, *, stress_unit: st
         import matplotlib.pyplot as plt
     except ImportError:
         raise OutputError("plot_fits: needs matplotlib (pip install 'hyperfem[plot]')") from None
-    modes = [m for m in MODES if any(m in r.data for r in results)]
+    modes = list(dict.fromkeys(k for r in results for k in r.data))  # the curves' labels
     fig, axes = plt.subplots(1, len(modes), figsize=(4.6 * len(modes), 4.2), squeeze=False)
     for ax, mode in zip(axes[0], modes, strict=True):
         data = next(r.data[mode] for r in results if mode in r.data)
@@ -1175,7 +1291,7 @@ def plot_fits(results: Sequence[FitResult], path: str | Path, *, stress_unit: st
             if mode in r.curves:
                 lam, P = r.curves[mode]
                 ax.plot(lam, P, "-", linewidth=1.4, label=f"{r.label}: rms {r.errors[mode].rms:.3g} {stress_unit}")
-        ax.set_title(mode.replace("_", " "))
+        ax.set_title(mode.replace("_", " ").replace("@", " at ") + ("°" if "@" in mode else ""))
         ax.set_xlabel("stretch λ [-]")
         ax.set_ylabel(f"nominal stress P₁₁ [{stress_unit}]")
         ax.grid(True, alpha=0.3)

@@ -46,6 +46,20 @@ work there), on all of :math:`\mathbb R^3` for a compressible one.
 :math:`2\mu_0` at :math:`F = I`), :math:`H` from central differences of the
 compiled :math:`\tau` (step :math:`10^{-4}`: relative error :math:`\sim10^{-8}`,
 and no second kernel to compile — Ogden's tangent takes 16 s).
+
+**Fibres** (``fibres=True``): the energy also gets ``constants["fibre_angle"]``, a DG0
+field holding each state's angle :math:`\theta` (radians) of the fibres to
+:math:`e_1` in the :math:`e_1`–:math:`e_2` plane (the fitting laws build their
+directions from it, e.g. HGO's two families :math:`(\cos\theta, \pm\sin\theta, 0)`).
+Every method takes ``angle`` (one per state, or one for all). With the material
+symmetric about the test axes the principal stretches stay those of the test,
+but the two lateral stretches of an incompressible uniaxial test differ: the
+free faces give :math:`\tau_{22} = \tau_{33}` (:math:`\tau_i = \lambda_iP_{ii}` without the
+pressure), solved for :math:`\lambda_2` with :math:`\lambda_3 = 1/(\lambda\lambda_2)` by Newton's method on
+:math:`\ln\lambda_2`, all states at once. Equibiaxial and pure shear prescribe both
+in-plane stretches and report :math:`P_{11}` (the :math:`P_{22}` of an equibiaxial test is the
+:math:`P_{11}` of the angle :math:`90^\circ - \theta`). Drucker's check then covers the increments of
+the stretches along the test axes (not shears).
 """
 
 from __future__ import annotations
@@ -157,16 +171,22 @@ class HomogeneousResponse:
     """
 
     def __init__(
-        self, energy: Energy, parameters: Sequence[str], *, incompressible: bool, capacity: int = 256
+        self, energy: Energy, parameters: Sequence[str], *, incompressible: bool, capacity: int = 256,
+        fibres: bool = False,
     ) -> None:
         self.parameters = tuple(parameters)
         self.incompressible = bool(incompressible)
+        self.fibres = bool(fibres)
         self.capacity = int(capacity)
         self._mesh = dmesh.create_interval(MPI.COMM_SELF, self.capacity, [0.0, 1.0])
         self._F = fem.Function(fem.functionspace(self._mesh, ("DG", 0, (3, 3))))
         self._constants: dict[str, Any] = {name: fem.Constant(self._mesh, 0.0) for name in self.parameters}
+        given: dict[str, Any] = dict(self._constants)
+        if self.fibres:
+            self._angle = fem.Function(fem.functionspace(self._mesh, ("DG", 0)))
+            given["fibre_angle"] = self._angle
         F = ufl.variable(self._F)
-        P = ufl.diff(energy(F, dict(self._constants)), F)
+        P = ufl.diff(energy(F, given), F)
         self._expression = fem.Expression(ufl.as_vector([P[0, 0], P[1, 1], P[2, 2]]), np.array([[0.5]]))
         self._cells = np.arange(self.capacity, dtype=np.int32)
         self._values = np.zeros((self.capacity, 3, 3))
@@ -187,10 +207,21 @@ class HomogeneousResponse:
         for name, value in zip(self.parameters, values, strict=True):
             self._constants[name].value = float(value)
 
-    def principal_stress(self, stretches: np.ndarray) -> np.ndarray:
+    def _angles(self, angle: float | Sequence[float] | np.ndarray | None, n: int) -> np.ndarray:
+        """The fibre angle of each of ``n`` states (a shorter array repeats: blocks of states)."""
+        if not self.fibres:
+            if angle is not None:
+                raise ParameterError("HomogeneousResponse: a fibre angle for a response without fibres")
+            return np.zeros(0)
+        if angle is None:
+            raise ParameterError("HomogeneousResponse: a response with fibres needs the fibre angle of each state")
+        return np.resize(np.asarray(angle, dtype=float).reshape(-1), n)
+
+    def principal_stress(self, stretches: np.ndarray, angle: float | np.ndarray | None = None) -> np.ndarray:
         r""":math:`(P_{11}, P_{22}, P_{33})` of :math:`\partial\psi/\partial F` at :math:`F = \operatorname{diag}`
-        of each row of ``stretches`` (shape ``(n, 3)``), no pressure added."""
+        of each row of ``stretches`` (shape ``(n, 3)``), no pressure added; ``angle``: the fibre angles."""
         stretches = np.asarray(stretches, dtype=float).reshape(-1, 3)
+        angles = self._angles(angle, len(stretches))
         out = np.empty_like(stretches)
         for start in range(0, len(stretches), self.capacity):
             chunk = stretches[start : start + self.capacity]
@@ -199,25 +230,58 @@ class HomogeneousResponse:
             for i in range(3):
                 self._values[:n, i, i] = chunk[:, i]
             self._F.x.array[: 9 * n] = self._values[:n].reshape(-1)
+            if self.fibres:
+                self._angle.x.array[:n] = angles[start : start + n]
             out[start : start + n] = self._expression.eval(self._mesh, self._cells[:n]).reshape(n, 3)
         return out
 
     # -- the modes ----------------------------------------------------------------------------------
-    def states(self, mode: str, stretch: Sequence[float] | np.ndarray) -> np.ndarray:
+    def states(self, mode: str, stretch: Sequence[float] | np.ndarray,
+               angle: float | np.ndarray | None = None) -> np.ndarray:
         r"""The principal stretches ``(n, 3)`` of ``mode``: incompressible, or with the lateral stretch solved."""
         m = check_mode(mode)
         lam = np.asarray(stretch, dtype=float).reshape(-1)
         if self.incompressible:
+            if self.fibres and m.name == "uniaxial":
+                return self._fibre_uniaxial(lam, self._angles(angle, len(lam)))
             return m.stretches(lam, m.incompressible_lateral(lam))
+        if self.fibres:
+            raise ParameterError("HomogeneousResponse: fibres are incompressible only")
         if m.free is None:
             return m.stretches(lam, lam)
         return m.stretches(lam, self._lateral(m, lam))
 
-    def nominal_stress(self, mode: str, stretch: Sequence[float] | np.ndarray) -> np.ndarray:
+    def _fibre_uniaxial(self, lam: np.ndarray, angles: np.ndarray, iterations: int = 60) -> np.ndarray:
+        r"""Incompressible uniaxial states with :math:`\tau_{22} = \tau_{33}` (module docstring); NaN rows where
+        Newton's method on :math:`\ln\lambda_2` does not converge."""
+        n = len(lam)
+        x = -0.5 * np.log(lam)  # ln lambda_2: the isotropic state
+        h = 1e-7
+
+        def states(x: np.ndarray) -> np.ndarray:
+            return np.stack([lam, np.exp(x), 1.0 / (lam * np.exp(x))], axis=1)
+
+        done = np.zeros(n, dtype=bool)
+        for _ in range(iterations):
+            both = np.concatenate([states(x), states(x + h)])
+            tau = both * self.principal_stress(both, np.concatenate([angles, angles]))
+            g, g_h = tau[:n, 1] - tau[:n, 2], tau[n:, 1] - tau[n:, 2]
+            slope = (g_h - g) / h
+            step = np.clip(-g / np.where(slope > 0.0, slope, np.nan), -0.5, 0.5)  # NaN where the slope is lost
+            x = x + step
+            done = np.abs(step) <= 1e-11
+            if done.all():
+                return states(x)
+            if not np.isfinite(x).any():
+                break
+        return np.where(done[:, None], states(x), np.nan)
+
+    def nominal_stress(self, mode: str, stretch: Sequence[float] | np.ndarray,
+                       angle: float | np.ndarray | None = None) -> np.ndarray:
         r"""The nominal stress :math:`P_{11}` of ``mode`` at each test stretch (module docstring)."""
         m = check_mode(mode)
-        states = self.states(mode, stretch)
-        P = self.principal_stress(states)
+        states = self.states(mode, stretch, angle)
+        P = self.principal_stress(states, None if angle is None else self._angles(angle, len(states)))
         if self.incompressible:
             assert m.free is not None  # an incompressible mode has a free face
             pressure = P[:, m.free] * states[:, m.free]
@@ -246,14 +310,16 @@ class HomogeneousResponse:
                 break
         return np.where(done, a, np.nan)
 
-    def drucker(self, mode: str, stretch: Sequence[float] | np.ndarray) -> np.ndarray:
+    def drucker(self, mode: str, stretch: Sequence[float] | np.ndarray,
+                angle: float | np.ndarray | None = None) -> np.ndarray:
         r"""The smallest eigenvalue of :math:`\partial\tau_i/\partial\varepsilon_j` along ``mode`` (module docstring).
 
         Positive where the law is Drucker stable; on the plane :math:`\sum_i d\varepsilon_i = 0` for an
         incompressible response. NaN where the state has no finite stress.
         """
-        states = self.states(mode, stretch)
+        states = self.states(mode, stretch, angle)
         n = len(states)
+        angles = None if angle is None else self._angles(angle, n)
         if self.incompressible:  # an orthonormal basis of the plane sum = 0
             basis = np.array([[1.0, -1.0, 0.0], [1.0, 1.0, -2.0]]).T / np.sqrt([2.0, 6.0])
         else:
@@ -262,7 +328,7 @@ class HomogeneousResponse:
         log = np.log(states)
         shifted = [log + sign * DRUCKER_STEP * basis[:, j] for j in range(k) for sign in (1.0, -1.0)]
         stretches = np.exp(np.concatenate(shifted))
-        tau = (stretches * self.principal_stress(stretches)).reshape(2 * k, n, 3)
+        tau = (stretches * self.principal_stress(stretches, angles)).reshape(2 * k, n, 3)
         columns = [(tau[2 * j] - tau[2 * j + 1]) / (2.0 * DRUCKER_STEP) for j in range(k)]  # H v_j, (n, 3) each
         H = np.einsum("ia,nib->nab", basis, np.stack(columns, axis=2))  # V^T H V
         H = 0.5 * (H + np.transpose(H, (0, 2, 1)))
