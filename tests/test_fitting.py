@@ -215,14 +215,15 @@ def test_fit_recovers_a_two_constant_law(law):
     from hyperfem.app.sections import check_materials
 
     truth = [0.7, 2.3]  # nu = 0.36
-    response = fitting._response(law, 1, False, "log")
-    response.set_parameters(truth)
+    response = fitting._response(law, 1, False, "log")  # the one fit() uses (cached): set before each use
     for second in ("equibiaxial", "volumetric"):
+        response.set_parameters(truth)
         curves = {m: Curve(m, LAME[m], response.nominal_stress(m, LAME[m])) for m in ("uniaxial", second)}
         result = fit(law, curves)
         assert not result.incompressible and result.converged and result.stable
         np.testing.assert_allclose([result.parameters["mu"], result.parameters["K"]], truth, rtol=1e-6)
         assert max(e.relative_rms for e in result.errors.values()) < 1e-6
+    response.set_parameters(truth)
     lateral = response.states("uniaxial", LAME["uniaxial"])[:, 1]  # the free face: P22 = 0
     assert np.abs(response.principal_stress(response.states("uniaxial", LAME["uniaxial"]))[:, 1]).max() < 1e-9
     assert (np.diff(lateral) < 0).all()
@@ -240,7 +241,7 @@ HGO = {"mu": 0.02, "k1": 0.3, "k2": 2.0, "kappa": 0.1}  # MPa, an arterial layer
 
 def _hgo_csv(path):
     """Uniaxial and equibiaxial data of HGO at fibre angles 30 and 60 degrees, as a CSV file."""
-    response = fitting._response("holzapfel_gasser_ogden", 1, True, "log")
+    response = fitting._response("holzapfel_gasser_ogden", 1, True, "log")  # cached, shared with fit()
     response.set_parameters(HGO)
     lines = ["mode,fibre_angle_deg,stretch,nominal_stress_MPa"]
     for angle in (30.0, 60.0):
