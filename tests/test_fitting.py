@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import ufl
 from mpi4py import MPI
 
 from dolfinx import fem
@@ -292,6 +293,31 @@ def test_fit_recovers_hgo_from_two_angles(shared_tmp):
     assert set(summary["rms_MPa"]) == set(curves)
 
 
+WEISS = {"c1": 1.44, "c2": 0.0, "c3": 0.57, "c4": 48.0, "c5": 467.0, "lambda_star": 1.062}  # MPa, Weiss's tendon
+
+
+def test_fit_recovers_weiss_along_and_across():
+    """Tendon data along (0) and across (90 degrees) the fibres, toe and linear regions: the six constants come
+    back; the fitted energy with the law's own toe quadrature gives the same stresses; [fibres] reads back."""
+    from hyperfem.app.sections import check_fibres, check_materials
+    from hyperfem.materials.weiss import weiss_isochoric
+
+    response = fitting._response("weiss", 1, True, "log")  # cached, shared with fit()
+    response.set_parameters(WEISS)
+    lam = {"uniaxial": np.linspace(1.01, 1.1, 10), "equibiaxial": np.linspace(1.01, 1.08, 8)}
+    curves = [Curve(m, lam[m], response.nominal_stress(m, lam[m], np.radians(a)), a) for a in (0.0, 90.0) for m in lam]
+    result = fit("weiss", curves)
+    assert result.converged and result.stable
+    np.testing.assert_allclose([result.parameters[k] for k in WEISS], list(WEISS.values()), rtol=1e-6, atol=1e-9)
+    own = HomogeneousResponse(lambda F, c: weiss_isochoric(F, ufl.as_vector([1.0, 0.0, 0.0]), result.material), [],
+                              incompressible=True)  # the case file's energy: its own Gauss points
+    np.testing.assert_allclose(own.nominal_stress("uniaxial", lam["uniaxial"]), curves[0].stress, rtol=1e-8)
+    table = tomllib.loads(result.case_table(stress_factor=1e6))
+    (material,) = check_materials(table["material"], mixed=True, has_fibres=True)
+    np.testing.assert_allclose(material.parameters["lambda_star"], 1.062, rtol=1e-6)
+    assert check_fibres(table["fibres"]) and "second_fibres" not in table
+
+
 def test_fibre_angle_refusals(shared_tmp):
     curves = read_curves(_hgo_csv(shared_tmp / "hgo_refusals.csv"))
     cases = [
@@ -300,7 +326,8 @@ def test_fibre_angle_refusals(shared_tmp):
         ("holzapfel_gasser_ogden", curves, {"bulk_modulus": 1.0}, "fit: holzapfel_gasser_ogden is fitted "
                                                                   "incompressible"),
         ("yeoh", curves, {}, "fit: yeoh is isotropic: the fibre angle (fibre_angle_deg, uniaxial@30) is for"),
-        ("weiss", curves, {}, "fit: law 'weiss' is not fitted to test data (a fibre law with one family"),
+        ("weiss", curves, {}, "fit: weiss has one fibre family: a test at fibre angle uniaxial@30 shears"),
+        ("fung_orthotropic", curves, {}, "fit: law 'fung_orthotropic' is not fitted to test data (orthotropic axes"),
     ]
     for law, data, kwargs, expected in cases:
         with pytest.raises(ParameterError) as info:
@@ -434,7 +461,7 @@ CLI_ERRORS = {
     "mode": ([str(fitting.TRELOAR), "--law", "yeoh", "--modes", "uniaxial,equi_biaxial"],
              "fit: unknown mode 'equi_biaxial' (did you mean 'equibiaxial'?)"),
     "fibre law": ([str(fitting.TRELOAR), "--law", "fung_orthotropic"],
-                  "fit: law 'fung_orthotropic' is not fitted to test data (a fibre law with one family"),
+                  "fit: law 'fung_orthotropic' is not fitted to test data (orthotropic axes"),
     "no angle": ([str(fitting.TRELOAR), "--law", "holzapfel_gasser_ogden"],
                  "fit: holzapfel_gasser_ogden needs the fibre angle of every curve (a column fibre_angle_deg)"),
     "one mode, two constants": ([str(fitting.TRELOAR), "--law", "hencky", "--modes", "pure_shear"],

@@ -71,9 +71,13 @@ range its parameter class accepts):
   (:meth:`~hyperfem.materials.homogeneous.HomogeneousResponse.states`). Two angles (or
   uniaxial with equibiaxial) separate the matrix from the fibres. The table adds
   ``[fibres]`` and ``[second_fibres]`` (constant, :math:`(\cos\theta, \pm\sin\theta, 0)` of the
-  first angle: the directions of the geometry replace them). ``weiss`` (one family) and
-  ``fung_orthotropic`` (orthotropic axes) are not fitted: at an angle their tests
-  shear, which these homogeneous modes do not; ``muscle``'s active part is no passive property;
+  first angle: the directions of the geometry replace them). ``fung_orthotropic`` is not
+  fitted: its in-plane shear constants :math:`b_7, b_8, b_9` do not act in these tests (and at
+  an angle a test of orthotropic axes shears); ``muscle``'s active part is no passive property;
+* ``weiss`` (curves with a fibre angle 0 or 90 only, incompressible): :math:`c_1 > 0`, :math:`c_2, c_3, c_5 \ge 0`,
+  :math:`c_4 \in [10^{-3}, 500]`, :math:`\lambda^* \in (1, 2]`; its one family along :math:`(\cos\theta, \sin\theta, 0)`
+  (at another angle a test of one family shears); the toe integral with 64 Gauss points
+  (:data:`_WEISS_POINTS`; the law's own count depends on :math:`c_4, \lambda^*`). The table adds ``[fibres]``;
 * the compressible laws of two elastic constants (:data:`_LAME_ENERGIES`: ``robust_neo_hookean``,
   ``stable_neo_hookean``, ``saint_venant_kirchhoff``, ``linear_elastic``, ``hencky``,
   ``saint_venant_kirchhoff_principal``, ``fixed_corotated``, ``corotational_linear``): :math:`\mu > 0` and
@@ -142,6 +146,7 @@ from hyperfem.materials.veronda_westmann import (
     veronda_westmann,
     veronda_westmann_isochoric,
 )
+from hyperfem.materials.weiss import WeissParameters, weiss_isochoric
 from hyperfem.materials.volumetric import volumetric_energy, volumetric_law
 from hyperfem.materials.yeoh import (
     ReducedPolynomialParameters,
@@ -620,8 +625,38 @@ def _holzapfel_gasser_ogden(terms: int, reach: float) -> _Model:
     )
 
 
-_FIBRE_TABLES = {"holzapfel_gasser_ogden": "hgo"}
-"""The fitted fibre laws and the arrangement of their [fibres] tables (``hgo``: two families at +-theta)."""
+_WEISS_POINTS = 64
+"""Gauss-Legendre points of Weiss's toe integral in a fit (the most the law takes: its own count depends on c4 and
+lambda_star, which are constants here)."""
+
+
+def _weiss(terms: int, reach: float) -> _Model:
+    def isochoric(F: Expr, c: Mapping[str, Any]) -> Expr:
+        theta = c["fibre_angle"]
+        a0 = ufl.as_vector([ufl.cos(theta), ufl.sin(theta), 0.0])
+        c3, c4, c5, ls = c["c3"], c["c4"], c["c5"], c["lambda_star"]
+        params = _ns(c1=c["c1"], c2=c["c2"], c3=c3, c4=c4, c5=c5, lambda_star=ls,
+                     c6=c3 * (ufl.exp(c4 * (ls - 1.0)) - 1.0) - c5 * ls, quadrature_points=_WEISS_POINTS)
+        return weiss_isochoric(F, a0, params)
+
+    def energy(vol: str) -> Energy:
+        raise ParameterError("fit: weiss is fitted incompressible (no bulk_modulus, no volumetric data)")
+
+    return _Model(
+        "weiss", ("c1", "c2", "c3", "c4", "c5", "lambda_star"), (True, True, True, False, True, False),
+        _fixed((1e-12, 0.0, 0.0, 1e-3, 0.0, 1.0 + 1e-6), (math.inf, math.inf, math.inf, 500.0, math.inf, 2.0)),
+        ((0.5, 0.0, 0.2, 40.0, 300.0, 1.06), (0.5, 0.0, 1.0, 10.0, 50.0, 1.15)),
+        isochoric, energy,
+        lambda v, K, vol: WeissParameters(c1=v["c1"], c2=v["c2"], c3=v["c3"], c4=v["c4"], c5=v["c5"],
+                                          lambda_star=v["lambda_star"], K=K, volumetric=vol),
+        lambda v: {k: v[k] for k in ("c1", "c2", "c3", "c4", "c5", "lambda_star")},
+        fibres=True,
+    )
+
+
+_FIBRE_TABLES = {"holzapfel_gasser_ogden": "hgo", "weiss": "one"}
+"""The fitted fibre laws and their [fibres] tables (``hgo``: two families at +-theta; ``one``: one family at theta,
+only along or across the load: at another angle a test of one family shears)."""
 
 _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "neo_hookean": _neo_hookean,
@@ -634,14 +669,15 @@ _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "ogden": _ogden,
     **{law: _lame_law(law) for law in _LAME_ENERGIES},
     "holzapfel_gasser_ogden": _holzapfel_gasser_ogden,
+    "weiss": _weiss,
 }
 FIT_LAWS: tuple[str, ...] = (*_MODELS, "prony")
 """The laws :func:`fit` knows (their case-file names; ``prony``: a Prony series to relaxation data)."""
 
-_FIBRE = ("a fibre law with one family or orthotropic axes: a test at an angle shears, which the homogeneous "
-          "modes here do not (holzapfel_gasser_ogden, two families at +-theta, is fitted)")
+_FIBRE = ("orthotropic axes: the in-plane shear constants b7-b9 do not act in these tests (and at an angle a test "
+          "shears), so they cannot be fitted (holzapfel_gasser_ogden and weiss are)")
 _NOT_FITTED = {
-    **dict.fromkeys(("weiss", "fung_orthotropic"), _FIBRE),
+    "fung_orthotropic": _FIBRE,
     "muscle": "its active part is not a property of passive tests",
     "arap": "mu |F - R|^2 has no volume term (one constant, lateral stretch 1): fit linear_elastic or "
             "fixed_corotated and keep mu",
@@ -824,7 +860,7 @@ class FitResult:
         }
         if self.law in _FIBRE_TABLES:
             raise ParameterError(f"FitResult.energy: {self.law} needs its fibre directions: "
-                                 f"hf.materials.{self.law}(F, a01, a02, result.material)")
+                                 f"hf.materials.{self.law}(F, <directions>, result.material)")
         if self.law not in laws:  # the energy of a diagonal F takes R = I, not a finite-element model's
             raise ParameterError(f"FitResult.energy: {self.law} needs the polar rotation of F: build it from "
                                  "the fitted material (hf.materials.FixedCorotated / corotational_linear)")
@@ -869,7 +905,8 @@ class FitResult:
         """
         check_positive("stress_factor", stress_factor, "FitResult.case_table")
         dimensionless = ({"Jm", "lambda_m", "alpha"} | ({"c2"} if self.law == "veronda_westmann" else set())
-                         | ({"k2", "kappa"} if self.law == "holzapfel_gasser_ogden" else set()))
+                         | ({"k2", "kappa"} if self.law == "holzapfel_gasser_ogden" else set())
+                         | ({"c4", "lambda_star"} if self.law == "weiss" else set()))
         kind = "incompressible" if self.incompressible else "compressible"
         lines = [f"# {self.label} fitted to {', '.join(self.data)} ({kind}, {self.weighting} least squares); "
                  f"moduli in {unit}"]
@@ -888,12 +925,15 @@ class FitResult:
         if self.law in _FIBRE_TABLES:
             angles = sorted({c.angle for c in self.data.values() if c.angle is not None})
             theta = math.radians(angles[0])
+            two = _FIBRE_TABLES[self.law] == "hgo"
             lines += [f"# the fibres of a specimen with {ANGLE_COLUMN} = {angles[0]:g} (fitted: "
-                      f"{', '.join(f'{a:g}' for a in angles)}); the two families at +-theta to x in the x-y plane: "
-                      "set them to your geometry's", "[fibres]", 'type = "constant"',
-                      f"direction = [{_number(math.cos(theta))}, {_number(math.sin(theta))}, 0.0]",
-                      "[second_fibres]", 'type = "constant"',
-                      f"direction = [{_number(math.cos(theta))}, {_number(-math.sin(theta))}, 0.0]"]
+                      f"{', '.join(f'{a:g}' for a in angles)}); "
+                      + ("the two families at +-theta to x in the x-y plane: " if two else "")
+                      + "set them to your geometry's", "[fibres]", 'type = "constant"',
+                      f"direction = [{_number(math.cos(theta))}, {_number(math.sin(theta))}, 0.0]"]
+            if two:
+                lines += ["[second_fibres]", 'type = "constant"',
+                          f"direction = [{_number(math.cos(theta))}, {_number(-math.sin(theta))}, 0.0]"]
         return "\n".join(lines) + "\n"
 
     def to_json(self) -> dict[str, Any]:
@@ -1162,6 +1202,10 @@ def fit(
                                  f"{plain[0]} has none")
         if bulk_modulus is not None or any(c.mode == "volumetric" for c in curves.values()):
             raise ParameterError(f"fit: {law} is fitted incompressible (no bulk_modulus, no volumetric data)")
+        skew = [k for k, c in curves.items() if _FIBRE_TABLES[law] == "one" and abs(c.angle or 0.0) not in (0.0, 90.0)]
+        if skew:
+            raise ParameterError(f"fit: {law} has one fibre family: a test at fibre angle {skew[0]} shears, which "
+                                 "these homogeneous modes do not; angles 0 (along the load) or 90 (across) only")
     elif angled:
         raise ParameterError(f"fit: {law} is isotropic: the fibre angle ({ANGLE_COLUMN}, {angled[0]}) is for "
                              f"the fibre law holzapfel_gasser_ogden")
