@@ -237,6 +237,19 @@ def test_fit_recovers_a_two_constant_law(law):
     np.testing.assert_allclose(fixed.parameters["mu"], 0.7, rtol=1e-6)
 
 
+def test_a_round_off_stress_at_the_reference_state_does_not_dominate_the_fit():
+    """Data generated at stretch 1 hold a stress of round-off size there, not 0: it is weighted as a zero
+    (fitting.ZERO_STRESS), not by 1/|P| ~ 1e16 (stable neo-Hookean came back 10 % off before)."""
+    truth = [0.7, 2.3]
+    response = fitting._response("stable_neo_hookean", 1, False, "log")
+    response.set_parameters(truth)
+    stretches = {"uniaxial": np.linspace(0.8, 1.3, 11), "equibiaxial": np.linspace(0.9, 1.2, 7)}  # both hold 1.0
+    curves = {m: Curve(m, s, response.nominal_stress(m, s)) for m, s in stretches.items()}
+    assert 0.0 < min(np.abs(c.stress).min() for c in curves.values()) < 1e-12  # the point at 1: round-off, not 0
+    result = fit("stable_neo_hookean", curves)
+    np.testing.assert_allclose([result.parameters["mu"], result.parameters["K"]], truth, rtol=1e-6)
+
+
 HGO = {"mu": 0.02, "k1": 0.3, "k2": 2.0, "kappa": 0.1}  # MPa, an arterial layer
 
 

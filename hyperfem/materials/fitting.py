@@ -92,7 +92,8 @@ range its parameter class accepts):
 Jacobian by forward differences of the compiled response. The residual of a
 point is :math:`w_i(P^\text{fit}_i - P_i)` with :math:`w_i = 1/|P_i|` (``weighting =
 "relative"``, the default, as Abaqus does: every point counts alike, not only
-the largest stresses; points with :math:`P_i = 0` get the mode's rms stress) or
+the largest stresses; points with :math:`P_i = 0`, or below :data:`ZERO_STRESS` of the mode's rms stress, get
+that rms stress) or
 :math:`w_i = 1` (``"absolute"``). The start: the law's shape at a unit shear
 modulus, scaled by the one factor that fits best (the energies are linear in
 their moduli).
@@ -196,6 +197,9 @@ BULK_RATIO = 1000.0
 r""":math:`K/\mu_0` of the material of an incompressible fit without ``bulk_modulus`` (:math:`\nu \approx 0.4995`)."""
 
 WEIGHTINGS = ("relative", "absolute")
+
+ZERO_STRESS = 1e-10
+"""Stresses below this fraction of their mode's rms stress are weighted as zeros (by that rms) in relative weighting."""
 
 _STABILITY_POINTS = 201
 _CURVE_POINTS = 200
@@ -1035,7 +1039,8 @@ def _weights(curves: Mapping[str, Curve], weighting: str) -> np.ndarray:
             out.append(np.ones_like(P))
             continue
         floor = float(np.sqrt(np.mean(P**2))) or 1.0
-        out.append(1.0 / np.where(P > 0.0, P, floor))
+        # A stress of round-off size (data generated at lambda = 1: 1e-16 for 0) counts as 0, not as a weight of 1e16.
+        out.append(1.0 / np.where(P > ZERO_STRESS * floor, P, floor))
     return np.concatenate(out)
 
 
