@@ -331,6 +331,113 @@ def test_fit_recovers_weiss_along_and_across():
     assert check_fibres(table["fibres"]) and "second_fibres" not in table
 
 
+FUNG = {"c": 0.02, "b1": 12.0, "b2": 6.0, "b3": 4.0, "b4": 2.0, "b5": 1.0, "b6": 1.5,  # c in MPa
+        "b7": 3.0, "b8": 2.0, "b9": 2.5}
+FUNG_SHEAR = {k: FUNG[k] for k in ("b7", "b8", "b9")}
+
+
+def _fung_csv(path):
+    """Uniaxial and equibiaxial data of Fung orthotropic along (0) and across (90 degrees) its axis a1, as a CSV."""
+    response = fitting._response("fung_orthotropic", 1, True, "log")  # cached, shared with fit()
+    response.set_parameters(FUNG)
+    lines = ["mode,fibre_angle_deg,stretch,nominal_stress_MPa"]
+    for angle in (0.0, 90.0):
+        for mode, lam in (("uniaxial", np.linspace(1.02, 1.3, 12)), ("equibiaxial", np.linspace(1.02, 1.2, 10))):
+            P = response.nominal_stress(mode, lam, np.radians(angle))
+            lines += [f"{mode},{angle:g},{float(x)!r},{float(y)!r}" for x, y in zip(lam, P, strict=True)]
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.barrier()
+    return path
+
+
+def test_fit_recovers_fung_along_and_across_its_axes(shared_tmp, capsys):
+    """c and the normal block b1-b6 come back from uniaxial and equibiaxial tests at 0 and 90 degrees with the shear
+    constants b7-b9 fixed (no such test strains them); the fitted energy is fung_orthotropic_isochoric's; the table
+    with [fibres] (a1) and [second_fibres] (a2) reads back; the command takes --fix; without b7-b9: one line."""
+    from hyperfem.app.sections import check_fibres, check_materials
+    from hyperfem.materials.fung import fung_orthotropic_isochoric
+
+    path = _fung_csv(shared_tmp / "fung.csv")
+    curves = read_curves(path)
+    assert list(curves) == ["uniaxial@0", "uniaxial@90", "equibiaxial@0", "equibiaxial@90"]
+    result = fit("fung_orthotropic", curves, fixed=FUNG_SHEAR)
+    assert result.incompressible and result.converged and result.stable
+    assert result.fixed == ("b7", "b8", "b9")
+    np.testing.assert_allclose([result.parameters[k] for k in FUNG], list(FUNG.values()), rtol=1e-6)
+    assert max(e.relative_rms for e in result.errors.values()) < 1e-6
+    a1, a2 = ufl.as_vector([0.0, 1.0, 0.0]), ufl.as_vector([-1.0, 0.0, 0.0])  # 90 degrees
+    own = HomogeneousResponse(lambda F, c: fung_orthotropic_isochoric(F, a1, a2, result.material), [],
+                              incompressible=True)  # isotropic lateral stretches: equibiaxial only
+    np.testing.assert_allclose(own.nominal_stress("equibiaxial", curves["equibiaxial@90"].stretch),
+                               curves["equibiaxial@90"].stress, rtol=1e-6)
+    table = tomllib.loads(result.case_table(stress_factor=1e6))
+    (material,) = check_materials(table["material"], mixed=True, has_fibres=True, has_second_fibres=True)
+    np.testing.assert_allclose(material.parameters["c"], FUNG["c"] * 1e6, rtol=1e-5)
+    np.testing.assert_allclose(material.parameters["b7"], FUNG["b7"], rtol=1e-12)
+    check_fibres(table["fibres"])
+    assert table["second_fibres"]["direction"] == [0.0, 1.0, 0.0]
+    summary = dispatch(["fit", str(path), "--law", "fung_orthotropic", "--fix", "b7=3,b8=2,b9=2.5", "--json"])
+    assert summary["fixed"] == ["b7", "b8", "b9"] and summary["parameters"]["b9"] == 2.5
+    np.testing.assert_allclose(summary["parameters"]["b1"], FUNG["b1"], rtol=1e-6)
+    for fixed, expected in (({"b7": 3.0}, "fit: fung_orthotropic needs b8, b9 given in fixed (e.g. --fix b8=1.0): "
+                                          "no test along the material axes strains them"),
+                            ({**FUNG_SHEAR, "b8": -1.0}, "fit: fixed b8 = -1 is outside the range of "
+                                                         "fung_orthotropic [1e-06, 1000]")):
+        with pytest.raises(ParameterError) as info:
+            fit("fung_orthotropic", curves, fixed=fixed)
+        assert str(info.value).startswith(expected) and "\n" not in str(info.value), str(info.value)
+
+
+MOONEY = {"c1": 0.3, "c2": 0.05}
+
+
+def test_fit_with_fixed_parameters():
+    """Mooney-Rivlin with c2 fixed at its true value gives c1 back, fixed at 0 it stays 0 (c1 takes up the rest);
+    Ogden with both exponents fixed gives both mu back; the result, the table and the JSON name them fixed."""
+    response = fitting._response("mooney_rivlin", 1, True, "log")
+    response.set_parameters(MOONEY)
+    lam = np.linspace(1.1, 3.0, 10)
+    curves = [Curve(m, lam, response.nominal_stress(m, lam)) for m in ("uniaxial", "equibiaxial")]
+    result = fit("mooney_rivlin", curves, fixed={"c2": MOONEY["c2"]})
+    assert result.fixed == ("c2",) and result.parameters["c2"] == MOONEY["c2"]
+    np.testing.assert_allclose(result.parameters["c1"], MOONEY["c1"], rtol=1e-8)
+    assert "  (fixed)" in result.summary() and "# fixed, not fitted: c2" in result.case_table()
+    assert result.to_json()["fixed"] == ["c2"] and result.to_json()["parameters"]["c2"] == MOONEY["c2"]
+    off = fit("mooney_rivlin", curves, fixed={"c2": 0.0})
+    assert off.parameters["c2"] == 0.0 and off.parameters["c1"] > MOONEY["c1"]
+    assert max(e.relative_rms for e in off.errors.values()) > 1e-2
+    assert fit("mooney_rivlin", curves).fixed == ()
+
+    true = {"mu_1": 0.6, "mu_2": -0.01, "alpha_1": 1.5, "alpha_2": -2.5}
+    ogden = fitting._response("ogden", 2, True, "log")
+    ogden.set_parameters(true)
+    curves = [Curve(m, lam, ogden.nominal_stress(m, lam)) for m in ("uniaxial", "equibiaxial")]
+    result = fit("ogden", curves, terms=2, fixed={"alpha_1": 1.5, "alpha_2": -2.5})
+    np.testing.assert_allclose([result.parameters[k] for k in true], list(true.values()), rtol=1e-8)
+    assert result.fixed == ("alpha_1", "alpha_2") and result.material.alpha == (1.5, -2.5)
+
+
+def test_fixed_parameter_refusals_are_one_line():
+    cases = [
+        ("mooney_rivlin", {"c22": 1.0}, "fit: mooney_rivlin has no parameter 'c22' (did you mean 'c2'?) to fix; "
+                                        "parameters: c1, c2"),
+        ("mooney_rivlin", {"C1": 1.0}, "fit: mooney_rivlin has no parameter 'C1' (did you mean 'c1'?) to fix"),
+        ("mooney_rivlin", {"c2": float("nan")}, "fit: fixed c2 must be a finite number, got nan"),
+        ("mooney_rivlin", {"c2": -1.0}, "fit: fixed c2 = -1 is outside the range of mooney_rivlin [0, inf]"),
+        ("mooney_rivlin", [("c2", 1.0)], "fit: fixed must map parameter names to values, got list"),
+        ("ogden", {"mu_1": -1.0}, "fit: fixed mu_1 = -1 is outside the range of ogden [1e-12, inf]"),
+        ("neo_hookean", {"bulk_modulus": 1.0}, "fit: neo_hookean has no parameter 'bulk_modulus' to fix; "
+                                               "parameters: mu"),
+    ]
+    for law, fixed, expected in cases:
+        with pytest.raises(ParameterError) as info:
+            fit(law, treloar_data(), fixed=fixed)
+        assert str(info.value).startswith(expected) and "\n" not in str(info.value), str(info.value)
+    with pytest.raises(ParameterError, match="fit: fixed is an option of the hyperelastic laws, not of prony"):
+        fit("prony", _relaxation(0.0), fixed={"g_1": 0.3})
+
+
 def test_fibre_angle_refusals(shared_tmp):
     curves = read_curves(_hgo_csv(shared_tmp / "hgo_refusals.csv"))
     cases = [
@@ -340,7 +447,8 @@ def test_fibre_angle_refusals(shared_tmp):
                                                                   "incompressible"),
         ("yeoh", curves, {}, "fit: yeoh is isotropic: the fibre angle (fibre_angle_deg, uniaxial@30) is for"),
         ("weiss", curves, {}, "fit: weiss has one fibre family: a test at fibre angle uniaxial@30 shears"),
-        ("fung_orthotropic", curves, {}, "fit: law 'fung_orthotropic' is not fitted to test data (orthotropic axes"),
+        ("fung_orthotropic", curves, {}, "fit: fung_orthotropic is orthotropic: a test at fibre angle uniaxial@30 "
+                                         "shears, which these homogeneous modes do not; angles 0"),
     ]
     for law, data, kwargs, expected in cases:
         with pytest.raises(ParameterError) as info:
@@ -474,7 +582,11 @@ CLI_ERRORS = {
     "mode": ([str(fitting.TRELOAR), "--law", "yeoh", "--modes", "uniaxial,equi_biaxial"],
              "fit: unknown mode 'equi_biaxial' (did you mean 'equibiaxial'?)"),
     "fibre law": ([str(fitting.TRELOAR), "--law", "fung_orthotropic"],
-                  "fit: law 'fung_orthotropic' is not fitted to test data (orthotropic axes"),
+                  "fit: fung_orthotropic needs the fibre angle of every curve (a column fibre_angle_deg)"),
+    "fixed name": ([str(fitting.TRELOAR), "--law", "mooney_rivlin", "--fix", "c3=0.1"],
+                   "fit: mooney_rivlin has no parameter 'c3' to fix; parameters: c1, c2"),
+    "fixed range": ([str(fitting.TRELOAR), "--law", "mooney_rivlin", "--fix", "c2=-0.1"],
+                    "fit: fixed c2 = -0.1 is outside the range of mooney_rivlin [0, inf]"),
     "no angle": ([str(fitting.TRELOAR), "--law", "holzapfel_gasser_ogden"],
                  "fit: holzapfel_gasser_ogden needs the fibre angle of every curve (a column fibre_angle_deg)"),
     "one mode, two constants": ([str(fitting.TRELOAR), "--law", "hencky", "--modes", "pure_shear"],

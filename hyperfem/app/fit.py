@@ -3,7 +3,8 @@
 .. code-block:: text
 
     hyperfem fit DATA.csv --law LAW [--terms N] [--modes uniaxial,equibiaxial,pure_shear]
-                 [--bulk-modulus K] [--volumetric log] [--weighting relative|absolute] [--json] [--png FIT.png]
+                 [--bulk-modulus K] [--volumetric log] [--weighting relative|absolute] [--fix NAME=VALUE,...]
+                 [--json] [--png FIT.png]
     hyperfem fit RELAX.csv --law prony [--terms N | --tau 0.1,1 [--fit-tau]] [--ramp-time T] [--json] [--png]
 
 DATA.csv has the columns ``mode,stretch,nominal_stress_MPa`` (the format of
@@ -62,7 +63,9 @@ def add_fit_parser(sub: argparse._SubParsersAction) -> None:
         f"{', '.join(MODES)}; stretch the stretch along the load (volumetric: J^(1/3)); nominal_stress_MPa the "
         "first Piola-Kirchhoff stress P11 in MPa (force per undeformed area); holzapfel_gasser_ogden needs a column "
         "fibre_angle_deg (the two fibre families at +-angle to the load in the 1-2 plane; each mode and angle a "
-        "curve), weiss too (its one family at 0 or 90 only); fung_orthotropic, muscle and arap are not fitted. "
+        "curve), weiss and fung_orthotropic too (one family / the material axes a1, a2 at 0 or 90 only; "
+        "fung_orthotropic needs --fix b7=..,b8=..,b9=..: these tests do not strain its shear terms); "
+        "muscle and arap are not fitted. "
         "Example: hyperfem fit "
         "hyperfem/materials/data/treloar1944.csv --law ogden --terms 3 --png fit.png. --law prony: relaxation data, "
         "columns time_s (s from the start of the loading) and nominal_stress_MPa (the stress at a held strain) or "
@@ -89,6 +92,10 @@ def add_fit_parser(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--fit-tau", action="store_true", help="prony: refine the --tau times too")
     f.add_argument("--ramp-time", type=_ramp, default=None, metavar="T",
                    help="prony: duration in s of the linear ramp of strain before the hold (default 0: a step)")
+    f.add_argument("--fix", type=_fixed, default=None, metavar="NAME=VALUE[,NAME=VALUE]",
+                   help="hold these parameters at the given values (moduli in MPa), fit the others; e.g. "
+                   "--fix c2=0.1; fung_orthotropic needs its shear constants: --fix b7=2,b8=2,b9=2 (the table and "
+                   "--json list them as fixed)")
     f.add_argument("--json", action="store_true", help="print the result as JSON")
     f.add_argument("--png", type=Path, default=None, metavar="FIT.png", help="draw data and fit per mode to this PNG")
 
@@ -102,6 +109,21 @@ def _times(text: str) -> list[float]:
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
         raise argparse.ArgumentTypeError(f"expected relaxation times > 0, got {text!r}")
     return values
+
+
+def _fixed(text: str) -> dict[str, float]:
+    """``--fix``: comma-separated NAME=VALUE pairs."""
+    out: dict[str, float] = {}
+    for item in (i.strip() for i in text.split(",")):
+        name, sep, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not sep or not name.strip() or not math.isfinite(number):
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE[,NAME=VALUE] with finite values, got {text!r}")
+        out[name.strip()] = number
+    return out
 
 
 def _ramp(text: str) -> float:
@@ -139,7 +161,8 @@ def _prony_command(args: argparse.Namespace) -> dict[str, Any]:
     from hyperfem.materials.prony_fit import fit_prony, plot_relaxation, read_relaxation
 
     elastic = [name for name, value in (("--modes", args.modes), ("--bulk-modulus", args.bulk_modulus),
-                                        ("--volumetric", None if args.volumetric == "log" else args.volumetric))
+                                        ("--volumetric", None if args.volumetric == "log" else args.volumetric),
+                                        ("--fix", args.fix))
                if value is not None]
     if elastic:
         raise ParameterError(f"fit: {elastic[0]} is an option of the hyperelastic laws, not of prony")
@@ -186,6 +209,7 @@ def fit_command(args: argparse.Namespace) -> dict[str, Any]:
         bulk_modulus=args.bulk_modulus,
         volumetric=args.volumetric,
         weighting=args.weighting,
+        fixed=args.fix,
     )
     summary = result.to_json()
     left_out = relaxation_rows(args.data)

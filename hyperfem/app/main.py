@@ -12,7 +12,8 @@
     hyperfem plot OUTPUT_FOLDER
     hyperfem render CASE.toml [--checkpoint PATH] [-o OUT.png] [--scalars NAME] [--set KEY=VALUE ...]
     hyperfem convert IN OUT.msh [--reorient] [--tags NAME] [--names TAG=NAME,...]
-    hyperfem fit DATA.csv --law LAW [--terms N] [--modes MODE,...] [--json] [--png FIT.png] (hyperfem.app.fit)
+    hyperfem fit DATA.csv --law LAW [--terms N] [--modes MODE,...] [--fix NAME=VALUE,...] [--json]
+                 [--png FIT.png] (hyperfem.app.fit)
     hyperfem fit RELAX.csv --law prony [--terms N | --tau T1,T2 [--fit-tau]] [--ramp-time T] [--json] [--png FIT.png]
     hyperfem --version
 

@@ -71,13 +71,18 @@ range its parameter class accepts):
   (:meth:`~hyperfem.materials.homogeneous.HomogeneousResponse.states`). Two angles (or
   uniaxial with equibiaxial) separate the matrix from the fibres. The table adds
   ``[fibres]`` and ``[second_fibres]`` (constant, :math:`(\cos\theta, \pm\sin\theta, 0)` of the
-  first angle: the directions of the geometry replace them). ``fung_orthotropic`` is not
-  fitted: its in-plane shear constants :math:`b_7, b_8, b_9` do not act in these tests (and at
-  an angle a test of orthotropic axes shears); ``muscle``'s active part is no passive property;
+  first angle: the directions of the geometry replace them). ``muscle``'s active part is no passive
+  property;
 * ``weiss`` (curves with a fibre angle 0 or 90 only, incompressible): :math:`c_1 > 0`, :math:`c_2, c_3, c_5 \ge 0`,
   :math:`c_4 \in [10^{-3}, 500]`, :math:`\lambda^* \in (1, 2]`; its one family along :math:`(\cos\theta, \sin\theta, 0)`
   (at another angle a test of one family shears); the toe integral with 64 Gauss points
   (:data:`_WEISS_POINTS`; the law's own count depends on :math:`c_4, \lambda^*`). The table adds ``[fibres]``;
+* ``fung_orthotropic`` (curves with a fibre angle 0 or 90 only, incompressible): its axes :math:`a_1 =
+  (\cos\theta, \sin\theta, 0)`, :math:`a_2 = (-\sin\theta, \cos\theta, 0)` (at another angle a test of
+  orthotropic axes shears); :math:`c > 0`, :math:`b_1, b_2, b_3 \in [10^{-6}, 10^3]`, :math:`b_4, b_5, b_6 \in
+  [-10^3, 10^3]` (the normal block positive definite: the parameter class checks it). The shear constants
+  :math:`b_7, b_8, b_9` must be given in ``fixed``: along the material axes :math:`E_{12} = E_{23} = E_{31} = 0`, no
+  test of these modes strains them. The table adds ``[fibres]`` (:math:`a_1`) and ``[second_fibres]`` (:math:`a_2`);
 * the compressible laws of two elastic constants (:data:`_LAME_ENERGIES`: ``robust_neo_hookean``,
   ``stable_neo_hookean``, ``saint_venant_kirchhoff``, ``linear_elastic``, ``hencky``,
   ``saint_venant_kirchhoff_principal``, ``fixed_corotated``, ``corotational_linear``): :math:`\mu > 0` and
@@ -87,6 +92,10 @@ range its parameter class accepts):
   :math:`\nu`) or volumetric data. The corotated laws take :math:`R = I`, the polar rotation of the
   diagonal :math:`F` of every mode. The table's keys are ``mu`` and ``bulk_modulus``. ``arap``
   (:math:`\mu\|F - R\|^2`, no volume term) is not fitted.
+
+**Fixed parameters** (``fixed={"c2": 0.1}``, ``hyperfem fit --fix c2=0.1``): held at the given values (within
+the law's range; the parameter class validates them with the fitted ones), the others fitted; the result lists them
+(:attr:`FitResult.fixed`, a comment of the table, ``"fixed"`` of the JSON). ``initial`` only sets a start.
 
 **Least squares.** Levenberg–Marquardt with box bounds (projected steps), the
 Jacobian by forward differences of the compiled response. The residual of a
@@ -131,6 +140,7 @@ from hyperfem.materials.saint_venant_kirchhoff import saint_venant_kirchhoff
 from hyperfem.materials.stable_neo_hookean import StableNeoHookeanParameters, stable_neo_hookean
 from hyperfem.materials.principal_stretches import hencky, saint_venant_kirchhoff_principal
 from hyperfem.materials.arruda_boyce import ArrudaBoyceParameters, arruda_boyce, arruda_boyce_isochoric
+from hyperfem.materials.fung import FungOrthotropicParameters, fung_orthotropic_isochoric
 from hyperfem.materials.gent import GentParameters, gent, gent_isochoric
 from hyperfem.materials.holzapfel_gasser_ogden import (
     HolzapfelGasserOgdenParameters,
@@ -658,9 +668,44 @@ def _weiss(terms: int, reach: float) -> _Model:
     )
 
 
-_FIBRE_TABLES = {"holzapfel_gasser_ogden": "hgo", "weiss": "one"}
+_FUNG_NAMES = ("c", "b1", "b2", "b3", "b4", "b5", "b6", "b7", "b8", "b9")
+_FUNG_SHEAR = ("b7", "b8", "b9")
+"""Fung's in-plane shear constants: no test along the material axes strains E12, E23, E31, so ``fixed`` gives them."""
+
+
+def _fung_orthotropic(terms: int, reach: float) -> _Model:
+    def isochoric(F: Expr, c: Mapping[str, Any]) -> Expr:
+        theta = c["fibre_angle"]
+        a1 = ufl.as_vector([ufl.cos(theta), ufl.sin(theta), 0.0])
+        a2 = ufl.as_vector([-ufl.sin(theta), ufl.cos(theta), 0.0])
+        b = {n: c[n] for n in _FUNG_NAMES}
+        params = _ns(c=b["c"], b7=b["b7"], b8=b["b8"], b9=b["b9"],
+                     normal_block=((b["b1"], b["b4"], b["b6"]), (b["b4"], b["b2"], b["b5"]),
+                                   (b["b6"], b["b5"], b["b3"])))
+        return fung_orthotropic_isochoric(F, a1, a2, params)
+
+    def energy(vol: str) -> Energy:
+        raise ParameterError("fit: fung_orthotropic is fitted incompressible (no bulk_modulus, no volumetric data)")
+
+    return _Model(
+        "fung_orthotropic", _FUNG_NAMES, (True,) + (False,) * 9,
+        _fixed((1e-12, 1e-6, 1e-6, 1e-6, -1e3, -1e3, -1e3, 1e-6, 1e-6, 1e-6),
+               (math.inf, 1e3, 1e3, 1e3, 1e3, 1e3, 1e3, 1e3, 1e3, 1e3)),
+        ((1.0, 5.0, 5.0, 5.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0), (1.0, 20.0, 10.0, 10.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0),
+         (1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)),
+        isochoric, energy,
+        lambda v, K, vol: FungOrthotropicParameters(**{n: v[n] for n in _FUNG_NAMES}, K=K, volumetric=vol),
+        lambda v: {n: v[n] for n in _FUNG_NAMES},
+        fibres=True,
+    )
+
+
+_FIBRE_TABLES = {"holzapfel_gasser_ogden": "hgo", "weiss": "one", "fung_orthotropic": "axes"}
 """The fitted fibre laws and their [fibres] tables (``hgo``: two families at +-theta; ``one``: one family at theta,
-only along or across the load: at another angle a test of one family shears)."""
+only along or across the load: at another angle a test of one family shears; ``axes``: the orthotropic axes a1 at
+theta, a2 across it in the 1-2 plane, along or across the load only: at another angle an orthotropic test shears)."""
+_REQUIRED_FIXED = {"fung_orthotropic": _FUNG_SHEAR}
+"""Parameters no homogeneous test of :func:`fit` strains, which ``fixed`` must give."""
 
 _MODELS: dict[str, Callable[[int, float], _Model]] = {
     "neo_hookean": _neo_hookean,
@@ -674,14 +719,12 @@ _MODELS: dict[str, Callable[[int, float], _Model]] = {
     **{law: _lame_law(law) for law in _LAME_ENERGIES},
     "holzapfel_gasser_ogden": _holzapfel_gasser_ogden,
     "weiss": _weiss,
+    "fung_orthotropic": _fung_orthotropic,
 }
 FIT_LAWS: tuple[str, ...] = (*_MODELS, "prony")
 """The laws :func:`fit` knows (their case-file names; ``prony``: a Prony series to relaxation data)."""
 
-_FIBRE = ("orthotropic axes: the in-plane shear constants b7-b9 do not act in these tests (and at an angle a test "
-          "shears), so they cannot be fitted (holzapfel_gasser_ogden and weiss are)")
 _NOT_FITTED = {
-    "fung_orthotropic": _FIBRE,
     "muscle": "its active part is not a property of passive tests",
     "arap": "mu |F - R|^2 has no volume term (one constant, lateral stretch 1): fit linear_elastic or "
             "fixed_corotated and keep mu",
@@ -818,6 +861,7 @@ class FitResult:
         curves: ``(stretch, stress)`` of the fitted law on a fine grid over each mode's range.
         iterations: Levenberg–Marquardt iterations (of the best start).
         converged: Whether the optimiser stopped at a minimum.
+        fixed: The parameters held at given values (``fit(fixed=...)``), not fitted; in :attr:`parameters` too.
     """
 
     law: str
@@ -835,6 +879,7 @@ class FitResult:
     curves: dict[str, tuple[np.ndarray, np.ndarray]] = field(repr=False)
     iterations: int
     converged: bool
+    fixed: tuple[str, ...] = ()
 
     @property
     def stable(self) -> bool:
@@ -910,10 +955,13 @@ class FitResult:
         check_positive("stress_factor", stress_factor, "FitResult.case_table")
         dimensionless = ({"Jm", "lambda_m", "alpha"} | ({"c2"} if self.law == "veronda_westmann" else set())
                          | ({"k2", "kappa"} if self.law == "holzapfel_gasser_ogden" else set())
-                         | ({"c4", "lambda_star"} if self.law == "weiss" else set()))
+                         | ({"c4", "lambda_star"} if self.law == "weiss" else set())
+                         | (set(_FUNG_NAMES[1:]) if self.law == "fung_orthotropic" else set()))
         kind = "incompressible" if self.incompressible else "compressible"
         lines = [f"# {self.label} fitted to {', '.join(self.data)} ({kind}, {self.weighting} least squares); "
                  f"moduli in {unit}"]
+        if self.fixed:
+            lines.append(f"# fixed, not fitted: {', '.join(self.fixed)}")
         if self.incompressible:
             lines.append(f"# K = {BULK_RATIO:g} mu0, not fitted: nearly incompressible, use [problem] "
                          'formulation = "mixed"')
@@ -929,15 +977,19 @@ class FitResult:
         if self.law in _FIBRE_TABLES:
             angles = sorted({c.angle for c in self.data.values() if c.angle is not None})
             theta = math.radians(angles[0])
-            two = _FIBRE_TABLES[self.law] == "hgo"
+            kind = _FIBRE_TABLES[self.law]
             lines += [f"# the fibres of a specimen with {ANGLE_COLUMN} = {angles[0]:g} (fitted: "
                       f"{', '.join(f'{a:g}' for a in angles)}); "
-                      + ("the two families at +-theta to x in the x-y plane: " if two else "")
+                      + ("the two families at +-theta to x in the x-y plane: " if kind == "hgo" else
+                         "the material axes a1 at theta to x, a2 across it in the x-y plane: " if kind == "axes"
+                         else "")
                       + "set them to your geometry's", "[fibres]", 'type = "constant"',
                       f"direction = [{_number(math.cos(theta))}, {_number(math.sin(theta))}, 0.0]"]
-            if two:
+            if kind != "one":
+                second = ((math.cos(theta), -math.sin(theta) + 0.0) if kind == "hgo" else
+                          (-math.sin(theta) + 0.0, math.cos(theta)))
                 lines += ["[second_fibres]", 'type = "constant"',
-                          f"direction = [{_number(math.cos(theta))}, {_number(-math.sin(theta))}, 0.0]"]
+                          f"direction = [{_number(second[0])}, {_number(second[1])}, 0.0]"]
         return "\n".join(lines) + "\n"
 
     def to_json(self) -> dict[str, Any]:
@@ -952,6 +1004,7 @@ class FitResult:
             "terms": self.terms,
             "incompressible": self.incompressible,
             "parameters": keys,
+            "fixed": list(self.fixed),
             "bulk_modulus_MPa": self.bulk_modulus,
             "rms_MPa": {m: e.rms for m, e in self.errors.items()},
             "relative_rms": {m: e.relative_rms for m, e in self.errors.items()},
@@ -969,7 +1022,8 @@ class FitResult:
         state = ("parameters as given, not fitted" if self.iterations == 0 else
                  f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations")
         lines = [f"{self.label}, {kind}, {self.weighting} least squares ({state})"]
-        lines += [f"  {name:<10} {value: .6g}" for name, value in self.parameters.items()]
+        lines += [f"  {name:<10} {value: .6g}" + ("  (fixed)" if name in self.fixed else "")
+                  for name, value in self.parameters.items()]
         w = max([12, *(len(m) for m in self.errors)])
         lines.append(f"  {'mode':<{w}} {'points':>6} {'rms [' + unit + ']':>12} {'rel. rms':>9} {'max rel.':>9}")
         for mode, e in self.errors.items():
@@ -1088,6 +1142,7 @@ def fit(
     volumetric: str = "log",
     weighting: str = "relative",
     initial: Mapping[str, float] | None = None,
+    fixed: Mapping[str, float] | None = None,
     max_iterations: int | None = None,
     tau: Sequence[float] | None = None,
     fit_tau: bool | None = None,
@@ -1106,6 +1161,7 @@ def fit(
     volumetric: str = "log",
     weighting: str = "relative",
     initial: Mapping[str, float] | None = None,
+    fixed: Mapping[str, float] | None = None,
     max_iterations: int | None = None,
     tau: Sequence[float] | None = None,
     fit_tau: bool | None = None,
@@ -1123,6 +1179,7 @@ def fit(
     volumetric: str = "log",
     weighting: str = "relative",
     initial: Mapping[str, float] | None = None,
+    fixed: Mapping[str, float] | None = None,
     max_iterations: int | None = None,
     tau: Sequence[float] | None = None,
     fit_tau: bool | None = None,
@@ -1147,6 +1204,10 @@ def fit(
         volumetric: The volumetric law :math:`U(J)` of a compressible fit and of the material.
         weighting: ``"relative"`` (default) or ``"absolute"`` residuals.
         initial: Start values by parameter name (those not given: the default start); one start only.
+        fixed: Parameters held at the given values by name (data stress unit), the others fitted; the values
+            must lie in the law's range and the parameter class validates them with the fitted ones; the result
+            holds them (:attr:`FitResult.fixed`, the table and the JSON). ``fung_orthotropic`` needs its shear
+            constants ``b7, b8, b9`` here (no test along the material axes strains them).
         max_iterations: Levenberg–Marquardt iterations per start (default 500; ``prony``: 200); 0
             evaluates the start (e.g. published parameters given as ``initial``) without fitting.
         tau: ``prony`` only: given relaxation times (s).
@@ -1158,12 +1219,13 @@ def fit(
 
     Raises:
         ParameterError: Unknown law, mode or weighting, terms for a law without terms, a compressible
-            fit without K or volumetric data, volumetric data in an incompressible fit.
+            fit without K or volumetric data, volumetric data in an incompressible fit, an unknown or
+            out-of-range fixed parameter, a law's required fixed parameter missing.
     """
     if law == "prony":
         from hyperfem.materials.prony_fit import fit_prony
 
-        elastic_only = {"modes": modes, "bulk_modulus": bulk_modulus, "initial": initial,
+        elastic_only = {"modes": modes, "bulk_modulus": bulk_modulus, "initial": initial, "fixed": fixed,
                         "volumetric": None if volumetric == "log" else volumetric}
         given = [k for k, v in elastic_only.items() if v is not None]
         if given:
@@ -1207,9 +1269,11 @@ def fit(
                                  f"{plain[0]} has none")
         if bulk_modulus is not None or any(c.mode == "volumetric" for c in curves.values()):
             raise ParameterError(f"fit: {law} is fitted incompressible (no bulk_modulus, no volumetric data)")
-        skew = [k for k, c in curves.items() if _FIBRE_TABLES[law] == "one" and abs(c.angle or 0.0) not in (0.0, 90.0)]
+        skew = [k for k, c in curves.items() if _FIBRE_TABLES[law] in ("one", "axes")
+                and abs(c.angle or 0.0) not in (0.0, 90.0)]
         if skew:
-            raise ParameterError(f"fit: {law} has one fibre family: a test at fibre angle {skew[0]} shears, which "
+            what = "has one fibre family" if _FIBRE_TABLES[law] == "one" else "is orthotropic"
+            raise ParameterError(f"fit: {law} {what}: a test at fibre angle {skew[0]} shears, which "
                                  "these homogeneous modes do not; angles 0 (along the load) or 90 (across) only")
     elif angled:
         raise ParameterError(f"fit: {law} is isotropic: the fibre angle ({ANGLE_COLUMN}, {angled[0]}) is for "
@@ -1226,13 +1290,17 @@ def fit(
     stress_like = np.array(model.stress_like + ((True,) if fit_K else ()))
     k_start = _LAME_K_START if compressible_only else 100.0
     starts = [s + ((k_start,) if fit_K else ()) for s in model.starts]
-    fixed = {k: float(v) for k, v in (initial or {}).items()}
-    unknown = [k for k in fixed if k not in names]
+    held = _held(law, names, fixed)
+    start_values = {k: float(v) for k, v in (initial or {}).items()}
+    unknown = [k for k in start_values if k not in names]
     if unknown:
         raise ParameterError(f"fit: {law} has no parameter {unknown[0]!r}{_did_you_mean(unknown[0], names)}; "
                              f"parameters: {', '.join(names)}")
-    if fixed:
-        starts = [tuple(fixed.get(n, v) for n, v in zip(names, starts[0], strict=True))]
+    if start_values:
+        starts = [tuple(start_values.get(n, v) for n, v in zip(names, starts[0], strict=True))]
+    start_values.update(held)
+    starts = [tuple(held.get(n, v) for n, v in zip(names, s, strict=True)) for s in starts]
+    free = np.array([n not in held for n in names])
 
     response = _response(law, n_terms or 1, incompressible, volumetric)
     K_fixed = bulk_modulus
@@ -1248,11 +1316,25 @@ def fit(
     def residual(x: np.ndarray) -> np.ndarray:
         return weights * (np.concatenate(list(evaluate(x).values())) - target)
 
+    def full(x0: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        """The parameters of the free values ``y`` (the held ones from ``x0``)."""
+        def expand(y: np.ndarray) -> np.ndarray:
+            x = x0.copy()
+            x[free] = y
+            return x
+        return expand
+
     best: _Solution | None = None
     for start in starts:
         low, high = model.bounds(start[: len(model.names)])
         lower = np.array(low + ((1e-12,) if fit_K else ()))
         upper = np.array(high + ((math.inf,) if fit_K else ()))
+        outside = [n for n, v, lo, hi in zip(names, start, lower, upper, strict=True)
+                   if n in held and not lo <= v <= hi]
+        if outside:
+            k = names.index(outside[0])
+            raise ParameterError(f"fit: fixed {outside[0]} = {held[outside[0]]:g} is outside the range of {law} "
+                                 f"[{lower[k]:g}, {upper[k]:g}]")
         x0 = np.array(start)
         # the one factor of the moduli that fits best (the energy is linear in them)
         shape = np.concatenate(list(evaluate(np.clip(x0, lower, upper)).values()))
@@ -1263,10 +1345,18 @@ def fit(
         scale = scale if math.isfinite(scale) and scale > 0 else 1.0
         x0 = np.where(stress_like, x0 * scale, x0)
         for k, name in enumerate(names):
-            x0[k] = fixed.get(name, x0[k])
-        lower, upper = np.where(stress_like, lower * scale, lower), np.where(stress_like, upper * scale, upper)
+            x0[k] = start_values.get(name, x0[k])
+        scaled = np.where(stress_like & free, scale, 1.0)
+        lower, upper = lower * scaled, upper * scaled
         typical = np.maximum(np.where(stress_like, 1e-3 * scale, 1e-3), 1e-3 * np.abs(x0))
-        solution = _least_squares(residual, x0, lower, upper, typical, max_iterations)
+        expand = full(x0)
+        if free.any():
+            reduced = _least_squares(lambda y, expand=expand: residual(expand(y)), x0[free], lower[free], upper[free],
+                                     typical[free], max_iterations)
+            solution = _Solution(expand(reduced.x), reduced.cost, reduced.iterations, reduced.converged)
+        else:  # everything held: the given law evaluated
+            r = residual(x0)
+            solution = _Solution(x0, 0.5 * float(r @ r), 0, True)
         if best is None or solution.cost < best.cost:
             best = solution
     assert best is not None
@@ -1285,10 +1375,12 @@ def fit(
             K = float(K_fixed)
         else:
             unit = model.material(params_only, 1.0, volumetric)  # K = 1 only to read the shear modulus
-            K = BULK_RATIO * float(unit.mu if isinstance(unit, LameParameters) else unit.shear_modulus)
+            K = BULK_RATIO * float(unit.mu if isinstance(unit, LameParameters) else
+                                   max(unit.shear_moduli) if law == "fung_orthotropic" else unit.shear_modulus)
         material = model.material(params_only, K, volumetric)
     except ParameterError as exc:
-        raise ParameterError(f"fit: the fitted {law} is refused by its parameter class: {exc}") from None
+        also = f" (fixed: {', '.join(f'{k} = {v:g}' for k, v in held.items())})" if held else ""
+        raise ParameterError(f"fit: the fitted {law}{also} is refused by its parameter class: {exc}") from None
     return FitResult(
         law=law,
         terms=n_terms if law in _TERMS else None,
@@ -1305,7 +1397,27 @@ def fit(
         curves=curves_fit,
         iterations=best.iterations,
         converged=best.converged,
+        fixed=tuple(n for n in names if n in held),
     )
+
+
+def _held(law: str, names: Sequence[str], fixed: Mapping[str, float] | None) -> dict[str, float]:
+    """``fit(fixed=...)`` checked: known names, finite numbers, a law's required ones given."""
+    if fixed is not None and not isinstance(fixed, Mapping):
+        raise ParameterError(f"fit: fixed must map parameter names to values, got {type(fixed).__name__}")
+    held: dict[str, float] = {}
+    for name, value in (fixed or {}).items():
+        if name not in names:
+            raise ParameterError(f"fit: {law} has no parameter {name!r}{_did_you_mean(str(name), names)} to fix; "
+                                 f"parameters: {', '.join(names)}")
+        if not is_finite_number(value):
+            raise ParameterError(f"fit: fixed {name} must be a finite number, got {value!r}")
+        held[name] = float(value)
+    missing = [n for n in _REQUIRED_FIXED.get(law, ()) if n not in held]
+    if missing:
+        raise ParameterError(f"fit: {law} needs {', '.join(missing)} given in fixed (e.g. --fix "
+                             f"{missing[0]}=1.0): no test along the material axes strains them (E12, E23, E31 = 0)")
+    return held
 
 
 # -- the plot --------------------------------------------------------------------------------------------
