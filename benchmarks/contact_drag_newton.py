@@ -50,10 +50,19 @@ tool's move only (relative to a convex tool they slide on its supporting plane, 
 collision-free): drag 78 / 103 with the same forces, but the indentation worse (43 / 52 vs 36 /
 32) and at n = 14 17 refused steps instead of 5 (1194 iterations in all vs 912).
 
-The refused starts at n = 14 are the predictor's: its lift (the carried nodes prescribed, the
-tangent at the last state with the barrier's and friction's Hessians where the tool was) inverts
-cells next to the carried nodes (J <= J_min at full scale, and halving it puts the carried nodes back
-into the tool). Lifting with the elastic tangent alone (``NewtonSolver._predict`` without the
+The refused starts at n = 14 were the predictor's: at 10^4 unknowns the solver runs CG + GAMG, and
+the lift's Krylov solve (the carried nodes prescribed, the barrier's stiff block in the tangent) ended
+with KSP_DIVERGED_INDEFINITE_PC; the lift was dropped, the start stayed refused ("the surfaces
+intersect") and the step was cut back, down to 1/256. The lift now falls back to one LU solve, as a
+Newton direction does (``BoundaryPredictor._direct_fallback``): n = 14, friction 0.3: 912 -> 230
+iterations (indent 90 -> 31, drag 822 -> 199; 8 steps and 1 refused start instead of 98 steps and 9);
+frictionless: 1035 -> 134 (drag 953 -> 101; 8 steps instead of 113). n <= 12 (MUMPS) is unchanged,
+bit for bit. The forces differ where the baseline's step sequence did (the lagged friction's and the
+ploughing's dependence on the increments): n = 14 at t = 0.5 (end of the indentation) -0.03447 vs
+-0.03318 after 12 cut-back steps (n = 10, 12: -0.0385, -0.0348 with 4 steps), at t = 1 (-0.0353,
+0.0109) vs (-0.0361, 0.0129).
+
+Also tried, not adopted: lifting with the elastic tangent alone (``NewtonSolver._predict`` without the
 energies' Hessians when nodes are carried) measured, drag iterations before -> after: n = 10: 97 ->
 94, n = 12: 167 -> 129, n = 14: 822 -> 536 (71 steps instead of 98), frictionless n = 10: 137 -> 68,
 n = 12: 145 -> 153, with the same forces where the step sequence stayed the same; but n = 6 (the

@@ -5,7 +5,8 @@ solve with the tangent at the old state and the increment as a lifted
 Dirichlet condition carries the increment into the interior, instead of
 moving only the boundary nodes and squeezing the first layer of cells
 (displacement-driven loading then takes a few steps, not hundreds; see
-``tests/test_predictor.py``).
+``tests/test_predictor.py``). A lift whose Krylov solve fails is solved once
+more with LU, as a Newton direction is (:meth:`BoundaryPredictor._direct_fallback`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import dolfinx.fem.petsc as fpetsc
 from dolfinx.la.petsc import _ghost_update
 
 from hyperfem.problem.protocol import SolidProblem
+from hyperfem.solver.linear import LinearSolver
 from hyperfem.solver.state import assign_state
 
 __all__ = ["BoundaryPredictor"]
@@ -133,7 +135,25 @@ class BoundaryPredictor:
         P = None if preconditioner is None else preconditioner(A)
         ksp.setOperators(A, A if P is None else P)
         ksp.solve(b, du)
-        return ksp.getConvergedReason() > 0 and bool(np.isfinite(du.norm()))  # type: ignore[operator]  # petsc4py: an int
+        if ksp.getConvergedReason() <= 0:  # type: ignore[operator]  # petsc4py: an int
+            return self._direct_fallback(A, b, du)
+        return bool(np.isfinite(du.norm()))
+
+    def _direct_fallback(self, A: PETSc.Mat, b: PETSc.Vec, du: PETSc.Vec) -> bool:
+        """One LU solve of a lift whose Krylov solve failed, as for a Newton direction; whether it gave ``du``.
+
+        An obstacle's barrier block in the tangent stops CG + GAMG (``KSP_DIVERGED_INDEFINITE_PC``); without
+        this the lift was dropped, the start stayed refused and the step was cut back (the surgery demo at
+        n = 14: 5 steps cut back at their start, the drag in 98 steps instead of 8;
+        ``benchmarks/contact_drag_newton.py``). Up to :data:`~hyperfem.solver.newton.DIRECT_FALLBACK_LIMIT`
+        unknowns, as ``NewtonSolver._recover_direction``.
+        """
+        from hyperfem.solver.newton import DIRECT_FALLBACK_LIMIT  # newton imports this module
+
+        if A.getSize()[0] > DIRECT_FALLBACK_LIMIT:
+            return False
+        reason = LinearSolver().solve(self.problem.domain.comm, A, b, du, kind="fallback")
+        return reason > 0 and bool(np.isfinite(du.norm()))
 
     def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool]) -> bool:
         """Move the unknown to ``x + 2^-k du`` for the smallest admissible ``k``; back to ``x`` if none."""
