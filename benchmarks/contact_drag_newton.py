@@ -150,8 +150,8 @@ class IterationLog:
                 for k in range(len(collisions))}
 
     def _monitor(self, snes, it: int, norm: float) -> None:
-        x = snes.getSolution()
-        u = x.array_r.copy()
+        self.solver._set_state(snes.getSolution())  # the unknown with its ghosts (the surface is gathered from it)
+        u = self.problem.u.x.array.copy()
         pairs = self._pairs(u)
         record: dict = {"it": it, "residual": norm, "active": len(pairs),
                         "exact_tangent": bool(self.tool.exact_tangent), "min_distance": self.tool.min_distance(u)}
@@ -163,7 +163,6 @@ class IterationLog:
             record["max_move"] = float(np.abs(moved).max())
             record["lam_ls"] = float(np.linalg.norm(u - before) / self._filtered_norm) if self._filtered_norm else 0.0
             record["filters"] = dict(self._fractions)
-        self.solver._set_state(x)
         internal, external = self.solver._energies()
         record["potential"] = internal - external
         if it == 0:
