@@ -253,19 +253,25 @@ def test_a_round_off_stress_at_the_reference_state_does_not_dominate_the_fit():
 HGO = {"mu": 0.02, "k1": 0.3, "k2": 2.0, "kappa": 0.1}  # MPa, an arterial layer
 
 
-def _hgo_csv(path):
-    """Uniaxial and equibiaxial data of HGO at fibre angles 30 and 60 degrees, as a CSV file."""
-    response = fitting._response("holzapfel_gasser_ogden", 1, True, "log")  # cached, shared with fit()
-    response.set_parameters(HGO)
+def _fibre_csv(path, law, parameters, angles, stretches):
+    """Data of a fibre law at the given fibre angles (degrees), ``{mode: stretches}``, as a CSV file."""
+    response = fitting._response(law, 1, True, "log")  # cached, shared with fit()
+    response.set_parameters(parameters)
     lines = ["mode,fibre_angle_deg,stretch,nominal_stress_MPa"]
-    for angle in (30.0, 60.0):
-        for mode, lam in (("uniaxial", np.linspace(1.02, 1.25, 8)), ("equibiaxial", np.linspace(1.02, 1.15, 7))):
+    for angle in angles:
+        for mode, lam in stretches.items():
             P = response.nominal_stress(mode, lam, np.radians(angle))
             lines += [f"{mode},{angle:g},{float(x)!r},{float(y)!r}" for x, y in zip(lam, P, strict=True)]
     if MPI.COMM_WORLD.rank == 0:
         path.write_text("\n".join(lines) + "\n")
     MPI.COMM_WORLD.barrier()
     return path
+
+
+def _hgo_csv(path):
+    """Uniaxial and equibiaxial data of HGO at fibre angles 30 and 60 degrees, as a CSV file."""
+    stretches = {"uniaxial": np.linspace(1.02, 1.25, 8), "equibiaxial": np.linspace(1.02, 1.15, 7)}
+    return _fibre_csv(path, "holzapfel_gasser_ogden", HGO, (30.0, 60.0), stretches)
 
 
 def test_hgo_uniaxial_lateral_faces_are_free():
@@ -338,17 +344,8 @@ FUNG_SHEAR = {k: FUNG[k] for k in ("b7", "b8", "b9")}
 
 def _fung_csv(path):
     """Uniaxial and equibiaxial data of Fung orthotropic along (0) and across (90 degrees) its axis a1, as a CSV."""
-    response = fitting._response("fung_orthotropic", 1, True, "log")  # cached, shared with fit()
-    response.set_parameters(FUNG)
-    lines = ["mode,fibre_angle_deg,stretch,nominal_stress_MPa"]
-    for angle in (0.0, 90.0):
-        for mode, lam in (("uniaxial", np.linspace(1.02, 1.3, 12)), ("equibiaxial", np.linspace(1.02, 1.2, 10))):
-            P = response.nominal_stress(mode, lam, np.radians(angle))
-            lines += [f"{mode},{angle:g},{float(x)!r},{float(y)!r}" for x, y in zip(lam, P, strict=True)]
-    if MPI.COMM_WORLD.rank == 0:
-        path.write_text("\n".join(lines) + "\n")
-    MPI.COMM_WORLD.barrier()
-    return path
+    stretches = {"uniaxial": np.linspace(1.02, 1.3, 12), "equibiaxial": np.linspace(1.02, 1.2, 10)}
+    return _fibre_csv(path, "fung_orthotropic", FUNG, (0.0, 90.0), stretches)
 
 
 def test_fit_recovers_fung_along_and_across_its_axes(shared_tmp, capsys):
