@@ -2,6 +2,7 @@
 
 import gc
 import os
+import weakref
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -9,8 +10,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from mpi4py import MPI  # noqa: E402
 
+import dolfinx.fem  # noqa: E402
+import dolfinx.mesh  # noqa: E402
 import pytest  # noqa: E402
 from dolfinx import jit  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
 
 # On a cold JIT cache under load, waiting 10 s for another process's compile
 # of the same form can time out spuriously; allow two minutes.
@@ -34,10 +38,68 @@ def pytest_collection_finish(session):
     gc.freeze()
 
 
+# PETSc objects on a communicator of more than one rank are not destroyed when Python
+# drops them: petsc4py queues them as "garbage" of their communicator, to be destroyed by
+# PETSc.garbage_cleanup(comm), collectively. Each queued solver keeps communicators alive
+# (a MUMPS factorisation five on 2 ranks); once a test's mesh and spaces are gone, their
+# communicators (each IndexMap has its own) can no longer be cleaned up, and MPICH has 2048
+# communicators per process: a 2-rank run of the whole suite ran out of them near its end
+# (MPI_Abort in an IndexMap constructor, the job killed without a message). So every mesh
+# and function space a test creates is kept until its teardown, which cleans up the garbage
+# of each of their communicators (they are created collectively: in the same order on every
+# rank). Those that outlive their test (module caches, fixtures) are cleaned up after every
+# later test too, as long as they live.
+_KEPT: list[dolfinx.mesh.Mesh | dolfinx.fem.FunctionSpace] = []
+_LIVING: list[weakref.ref] = []
+
+
+def _keeping(cls):
+    init = cls.__init__
+
+    def recorded_init(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        if MPI.COMM_WORLD.size > 1:
+            _KEPT.append(self)
+            _LIVING.append(weakref.ref(self))
+
+    cls.__init__ = recorded_init
+
+
+_keeping(dolfinx.mesh.Mesh)
+_keeping(dolfinx.fem.FunctionSpace)
+
+
+def _communicators(obj) -> list[MPI.Comm]:
+    """The communicators PETSc objects made from a mesh or a space live on."""
+    if isinstance(obj, dolfinx.fem.FunctionSpace):
+        return [obj.dofmap.index_map.comm]
+    maps = [obj.geometry.index_map()]
+    for d in range(obj.topology.dim + 1):
+        try:
+            maps.append(obj.topology.index_map(d))
+        except RuntimeError:  # entities of this dimension not created (on any rank)
+            pass
+    return [obj.comm] + [m.comm for m in maps]
+
+
 @pytest.fixture(autouse=True)
 def _mpi_teardown():
     yield
     gc.collect()
+    seen = set()
+    if MPI.COMM_WORLD.size > 1:  # matrices a test made on the world communicator itself
+        PETSc.garbage_cleanup(MPI.COMM_WORLD)
+    for ref in _LIVING:
+        obj = ref()
+        if obj is None:
+            continue
+        for comm in _communicators(obj):
+            if comm.py2f() not in seen:
+                seen.add(comm.py2f())
+                PETSc.garbage_cleanup(comm)
+    _KEPT.clear()
+    gc.collect()
+    _LIVING[:] = [ref for ref in _LIVING if ref() is not None]
     MPI.COMM_WORLD.Barrier()
 
 

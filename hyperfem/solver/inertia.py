@@ -37,6 +37,7 @@ def negative_pivots(A: PETSc.Mat) -> int:
         A.convert(PETSc.Mat.Type.AIJ, copy)  # into a new matrix: convert(type) alone would convert A in place
         A = copy
     pc = PETSc.PC().create(A.getComm())
+    factor = None
     try:
         pc.setOperators(A, A)
         pc.setType(PETSc.PC.Type.CHOLESKY)
@@ -52,6 +53,10 @@ def negative_pivots(A: PETSc.Mat) -> int:
         message = f"negative_pivots: the LDL^T factorisation (MUMPS) of the tangent failed (PETSc error {code})"
         raise SolverError(message) from None
     finally:
+        # Destroyed here, collectively: a factor left to Python would wait as garbage with MUMPS's
+        # communicators (hyperfem.solver.garbage).
+        if factor is not None:
+            factor.destroy()
         pc.destroy()
         if blocked:
             A.destroy()

@@ -78,6 +78,7 @@ from hyperfem.solver.filters import (
     resolve_min_jacobian,
 )
 from hyperfem.solver.forcing import FinalStepForcing
+from hyperfem.solver.garbage import release_garbage, state_communicators
 from hyperfem.solver.linear import (
     AIJPreconditioner,
     LinearSolver,
@@ -317,6 +318,7 @@ class NewtonSolver:
     ) -> None:
         self.problem = problem
         self.comm = problem.domain.comm
+        self._garbage_comms = state_communicators(problem.u)
         self.prefix = solver_prefix(prefix)
         if check_rigid_motion and not problem.rigid_motion_resisted:
             _check_rigid_motion(problem)
@@ -705,6 +707,7 @@ class NewtonSolver:
             Exception: Whatever a SNES callback (objective, pre-check,
                 convergence test) raised.
         """
+        release_garbage(self._garbage_comms)  # every rank is here: what earlier solves dropped goes now
         counts = self._start_solve()
         start = time.perf_counter()
         # An external energy (contact) is never assembled at a refused state: a refused start guess is pulled
