@@ -230,13 +230,22 @@ class ReactionForce:
     the boundary and 0 elsewhere (exact for the discrete equilibrium). The
     form is compiled once.
 
+    On a time step (:class:`~hyperfem.dynamics.IncrementalProblem`) it is the
+    stored energy of the state :math:`u_{n+1}`, the force at :math:`t_{n+1}`
+    without inertia. (The step's own internal energy is that of generalized-α's
+    :math:`u_{n+1-\alpha_f}`: its force would lag by :math:`\alpha_f\,\Delta t`, 4.4 %
+    of a bar pulled at a constant rate over ten steps with :math:`\rho_\infty = 0.8`.)
+
     Args:
         problem: A :class:`~hyperfem.problem.HyperelasticProblem` or
-            :class:`~hyperfem.problem.MixedHyperelasticProblem` (or an object wrapping one).
+            :class:`~hyperfem.problem.MixedHyperelasticProblem` (or an object wrapping one,
+            such as a time step).
         boundary: Boundary name.
     """
 
-    def __init__(self, problem: SolidProblem, boundary: str) -> None:
+    def __init__(self, problem: SolidProblem | TimeStepState, boundary: str) -> None:
+        if isinstance(problem, TimeStepState):
+            problem = problem.base
         domain = problem.domain
         self.comm = domain.comm
         W = problem.u.function_space
