@@ -68,3 +68,6 @@ from hyperfem.solver.arc_length import ArcLength, ArcLengthRecord, ArcLengthStag
 from hyperfem.solver.inertia import negative_pivots  # noqa: E402
 
 __all__ += ["ArcLength", "ArcLengthRecord", "ArcLengthStage", "continue_arc_length", "negative_pivots"]
+from hyperfem.solver.garbage import release_garbage, state_communicators  # noqa: E402
+
+__all__ += ["release_garbage", "state_communicators"]

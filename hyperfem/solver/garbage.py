@@ -11,6 +11,13 @@ deep inside DOLFINx. :func:`release_garbage` is called where every rank is
 anyway (the start of each Newton solve), on the communicators a problem's PETSc
 objects live on: the mesh's and that of the state's dof map (DOLFINx gives each
 index map its own).
+
+What the last solve on a mesh left queued stays there when the mesh is dropped
+(a few communicators per mesh): a script that makes hundreds of meshes in one
+process on several ranks (a parameter sweep) calls
+``release_garbage(state_communicators(problem.u))`` once it is done with each,
+on every rank. The test suite does the same after every test
+(``tests/conftest.py``).
 """
 
 from __future__ import annotations
