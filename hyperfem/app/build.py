@@ -132,7 +132,7 @@ def check_dimensions(case: Case, domain: Domain) -> None:
             fail(f"{load.key}.value", f"{len(load.value)} components")
     for contact in case.contacts:
         if contact.boundaries is not None and gdim != 3:
-            fail(contact.key, f"a {contact.type} contact needs a 3D mesh of tetrahedra")
+            fail(contact.key, f"a {contact.type} contact needs a 3D mesh of tetrahedra or hexahedra")
         name, where = ("center", contact.center) if contact.type == "sphere" else ("point", contact.point)
         if where is not None and len(where) != gdim:
             fail(f"{contact.key}.{name}", f"{len(where)} components")

@@ -111,7 +111,7 @@ class SurfaceContact:
 
         Raises:
             UnknownGroupError: A boundary group does not exist (the message lists them).
-            ParameterError: Not a 3D tetrahedral P1/P2 problem, or the surfaces start touching or
+            ParameterError: Not a 3D degree-1/2 problem on tetrahedra or hexahedra, or the surfaces start touching or
                 intersecting (the message says where).
         """
         surface = contact_surface(problem, self.boundaries, self.where)

@@ -18,15 +18,18 @@ displacement of a step and :math:`\hat d`, rebuilt when a node leaves it.
 The surface of a P1 displacement is its boundary triangles; a P2 boundary
 triangle is split into four linear sub-triangles on its six nodes (vertices
 and edge midpoints), so every node is a vertex of the collision mesh and the
-barrier acts on every displacement node of the boundary. Tetrahedral meshes
-(3D) only; other cells are refused in one line.
+barrier acts on every displacement node of the boundary. On hexahedra a Q1
+face is split into two triangles and a Q2 face into eight on its nine nodes
+(corners, edge midpoints, centre). 3D meshes of tetrahedra or hexahedra; other
+cells are refused in one line.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import basix
 import numpy as np
 from mpi4py import MPI
 from dolfinx import fem
@@ -35,9 +38,6 @@ from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
 
 __all__ = ["ContactSurface", "contact_surface", "global_dofs"]
-
-# Edges of the reference tetrahedron (basix numbering): edge k joins these cell-local vertices.
-_TET_EDGES = ((2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1))
 
 
 @dataclass(frozen=True)
@@ -92,8 +92,52 @@ def global_dofs(problem: SolidProblem) -> np.ndarray:
     return (blocks[:, None] * bs + np.arange(bs)).ravel().astype(np.int64)
 
 
+def _facet_node_grid(topology: list, cell_type: str, local: int, node: Callable[[int, int], int]) -> list[list[int]]:
+    """The nodes of a degree-2 facet, ``node(dim, entity)`` the node of a cell-local entity.
+
+    A triangle: ``[[v0, v1, v2], [m01, m12, m02]]``; a quadrilateral (vertices a, b, c, d in basix order):
+    ``[[a, b], [c, d], [m_ab, m_ac, centre, m_bd, m_cd]]``.
+    """
+    vertices = list(topology[2][local])
+    edges = [set(e) for e in topology[1]]
+
+    def mid(a: int, b: int) -> int:
+        return node(1, edges.index({a, b}))
+
+    if cell_type == "tetrahedron":
+        a, b, c = vertices
+        return [[node(0, a), node(0, b), node(0, c)], [mid(a, b), mid(b, c), mid(a, c)]]
+    a, b, c, d = vertices  # basix: (0, 0), (1, 0), (0, 1), (1, 1) of the face
+    corners = [[node(0, a), node(0, b)], [node(0, c), node(0, d)]]
+    return corners + [[mid(a, b), mid(a, c), node(2, local), mid(b, d), mid(c, d)]]
+
+
+def _triangles(cell_type: str, vertices: list[int], grid: list[list[int]] | None) -> list[list[int]]:
+    """Linear triangles on a facet's nodes, every node a vertex: the vertices (degree 1) or the grid (degree 2)."""
+    if grid is None:
+        if cell_type == "tetrahedron":
+            return [vertices]
+        a, b, c, d = vertices  # basix: (0, 0), (1, 0), (0, 1), (1, 1) of the face
+        return [[a, b, d], [a, d, c]]
+    if cell_type == "tetrahedron":
+        (v0, v1, v2), (m01, m12, m02) = grid
+        return [[v0, m01, m02], [v1, m12, m01], [v2, m02, m12], [m01, m12, m02]]
+    (a, b), (c, d), (ab, ac, centre, bd, cd) = grid
+    rows = [[a, ab, b], [ac, centre, bd], [c, cd, d]]  # the 3 x 3 nodes of a Q2 face, two triangles per quarter
+    out = []
+    for i in range(2):
+        for j in range(2):
+            p, q, r, t = rows[i][j], rows[i][j + 1], rows[i + 1][j], rows[i + 1][j + 1]
+            out += [[p, q, t], [p, t, r]]
+    return out
+
+
 def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndarray], spaces: list) -> np.ndarray:
-    """The linear triangles of this rank's owned facets of ``boundary``: local dofs of the x component, ``(t, 3)``."""
+    """The linear triangles of this rank's owned facets of ``boundary``: local dofs of the x component, ``(t, 3)``.
+
+    Tetrahedra: a P1 facet is one triangle, a P2 facet four on its six nodes. Hexahedra: a Q1 face is two
+    triangles, a Q2 face eight on its nine nodes. Every displacement node of the facet is a vertex.
+    """
     domain = problem.domain
     mesh = domain.mesh
     tdim = domain.tdim
@@ -107,22 +151,20 @@ def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndar
     V = spaces[0]
     layout = V.dofmap.dof_layout
     degree = V.element.basix_element.degree
+    cell_type = mesh.topology.cell_name()
+    topology = basix.topology(basix.CellType[cell_type])
     out = []
     for facet in facets:
         cell = int(f2c.links(facet)[0])
         local = int(np.flatnonzero(c2f.links(cell) == facet)[0])
         cell_dofs = V.dofmap.cell_dofs(cell)
-        corner = [v for v in range(4) if v != local]  # facet k of a tetrahedron is opposite vertex k
-        vdof = [parents[0][cell_dofs[layout.entity_dofs(0, v)[0]]] for v in corner]
-        if degree == 1:
-            out.append(vdof)
-            continue
-        # P2: the edge node between corners a and b; four sub-triangles on the six nodes.
-        m01, m12, m02 = (
-            int(parents[0][cell_dofs[layout.entity_dofs(1, _TET_EDGES.index((corner[a], corner[b])))[0]]])
-            for a, b in ((0, 1), (1, 2), (0, 2))
-        )
-        out += [[vdof[0], m01, m02], [vdof[1], m12, m01], [vdof[2], m02, m12], [m01, m12, m02]]
+
+        def node(dim: int, entity: int, cell_dofs: np.ndarray = cell_dofs) -> int:
+            return int(parents[0][cell_dofs[layout.entity_dofs(dim, entity)[0]]])
+
+        vertices = [node(0, v) for v in topology[2][local]]
+        grid = _facet_node_grid(topology, cell_type, local, node) if degree == 2 else None
+        out += _triangles(cell_type, vertices, grid)
     return np.asarray(out, dtype=np.int64).reshape(-1, 3)
 
 
@@ -130,21 +172,23 @@ def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str
     """The collision surface of ``boundaries`` on every rank (collective; module docstring).
 
     Args:
-        problem: The problem (its displacement space: P1 or P2 on tetrahedra).
+        problem: The problem (its displacement space: degree 1 or 2 on tetrahedra or hexahedra).
         boundaries: Boundary group names.
         where: The contact, for messages.
 
     Raises:
         UnknownGroupError: A group does not exist (the message lists those that do).
-        ParameterError: Not a 3D tetrahedral mesh, a degree other than 1 or 2, or no facets at all.
+        ParameterError: Not a 3D mesh of tetrahedra or hexahedra, a degree other than 1 or 2, or no facets.
     """
     domain = problem.domain
     comm = domain.comm
     for name in boundaries:
         domain.facet_tag(name)  # UnknownGroupError listing the groups, on every rank
     cell = domain.mesh.topology.cell_name()
-    if domain.gdim != 3 or cell != "tetrahedron":
-        raise ParameterError(f"{where}: mesh contact needs a 3D tetrahedral mesh, got {domain.gdim}D {cell} cells")
+    if domain.gdim != 3 or cell not in ("tetrahedron", "hexahedron"):
+        raise ParameterError(
+            f"{where}: mesh contact needs a 3D mesh of tetrahedra or hexahedra, got {domain.gdim}D {cell} cells"
+        )
     V = problem.displacement_space()
     subs = [V.sub(i).collapse() for i in range(3)]
     spaces = [s[0] for s in subs]

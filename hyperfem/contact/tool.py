@@ -181,7 +181,8 @@ class ToolContact:
 
         Raises:
             UnknownGroupError: A boundary group does not exist (the message lists them).
-            ParameterError: Not a 3D tetrahedral P1/P2 problem, or the tool starts touching or inside the body.
+            ParameterError: Not a 3D degree-1/2 problem on tetrahedra or hexahedra, or the tool starts touching or
+                inside the body.
         """
         surface = contact_surface(problem, self.boundaries, self.where)
         dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
