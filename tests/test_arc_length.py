@@ -288,3 +288,51 @@ def test_simulation_continuation_rows_summary_and_restart(shared_tmp):
     for a, b in zip(resumed["rows"], rows, strict=True):
         assert a["time"] == pytest.approx(b["time"], rel=1e-8, abs=1e-12)
         assert a["negative_pivots"] == b["negative_pivots"]
+
+
+# -- contact ---------------------------------------------------------------------------------------------------------
+def _block_on_plane(motion=None):
+    """The unit cube (2^3 boxes) pushed 0.2 down onto a frictionless plane d-hat/2 below it (test_contact.py)."""
+    pytest.importorskip("ipctk")
+    from hyperfem.contact import PlaneContact
+    from test_contact import _block
+
+    dhat = 1e-3
+    problem = _block(n=2)
+    plane = PlaneContact("bottom", point=(0.0, 0.0, -dhat / 2), normal=(0.0, 0.0, 1.0), dhat=dhat, motion=motion)
+    contact = plane.bind(problem)
+    solver = NewtonSolver(problem, {"snes_rtol": 1e-10, "snes_atol": 1e-12}, external_energies=[contact])
+    return problem, contact, solver
+
+
+def test_continuation_with_contact_is_the_load_controlled_path():
+    """Arc-length continuation of a block pressed on a plane: every accepted step is intersection-free with the
+    plane's force balancing the pushed face's reaction (1e-8); the end state is the ramp's at the same load
+    factor (the same unique frictionless equilibrium: measured 3e-16 of the largest displacement, 1 and 2 ranks).
+    The landing step takes its arc from the current slope: 6 steps (0.2496, 0.498, 0.745, 0.9991, 1 - 1e-8, 1);
+    with the start's slope the stiffening path crept toward the end in 10 (0.9955, 0.99991, ...)."""
+    from hyperfem.simulation.reactions import ReactionForce
+
+    problem, contact, solver = _block_on_plane()
+    top = ReactionForce(problem, "top")
+    seen = []
+
+    def check(record):
+        seen.append((contact.min_distance(), float(contact.force()[2]), float(top()[2])))
+
+    history = continue_arc_length(solver, ArcLength(increment=0.25, end=1.0), on_step=check)
+    end = history[-1].time
+    assert end == pytest.approx(1.0, abs=1e-9) or end > 1.0
+    assert len(seen) == len(history) >= 2
+    for distance, force, reaction in seen:
+        assert 0.0 < distance < 1e-3 and force == pytest.approx(-reaction, rel=1e-8) and force > 0.0
+    ramp, _, ramp_solver = _block_on_plane()
+    hf.solve_quasistatic(ramp_solver, target=end, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    scale = np.abs(ramp.u.x.array).max()
+    np.testing.assert_allclose(problem.u.x.array, ramp.u.x.array, rtol=0, atol=1e-7 * scale)
+
+
+def test_continuation_refuses_a_moving_obstacle_in_one_line():
+    _, _, solver = _block_on_plane(motion=(0.0, 0.0, 0.1))
+    with pytest.raises(ParameterError, match=r"moves \(motion or rotation\), which the continuation cannot follow"):
+        continue_arc_length(solver, ArcLength(increment=0.25, end=1.0))

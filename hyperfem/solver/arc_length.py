@@ -105,8 +105,15 @@ A turn of the path tangent without a change of the inertia is not taken for
 a limit point (at a limit point an eigenvalue crosses zero): the direction
 is kept.
 
-**Scope.** Contact (external energies) is refused: the barrier's obstacles
-move with the time, which continuation leaves free; not yet available.
+**Contact** (external energies, :mod:`hyperfem.contact`) enters as in a
+Newton solve: its gradient in the residual (so in the merit and the load
+vector), its PSD Hessian in the tangent, its collision-free step filter
+(CCD) among the step filters, so no accepted iterate interpenetrates;
+friction is lagged per accepted step. The obstacles must hold still: the
+load factor goes up and down, and a moving obstacle would sweep into the
+body along with it (a motion or rotation is refused in one line). Measured:
+a block pressed on a plane by a pressure ramp (``tests/test_arc_length.py``)
+ends where the load-controlled ramp does.
 """
 
 from __future__ import annotations
@@ -317,6 +324,10 @@ class ArcLength:
         )
 
 
+LANDING_STRETCH = 4.0
+"""The landing step on ``end`` may take at most this many times the arc length of its load increment at the start
+(its arc is the gap over the current slope dλ/ds)."""
+
 MAX_FACTOR = 4.0
 """The default largest arc length, in first increments (at 16 the doubling arcs overshot: the sphere's path
 jumped to a negative pressure; a post-buckling path needs more, given by the user)."""
@@ -381,14 +392,23 @@ class _Path:
     switched: bool = False
 
 
+def _check_static_obstacles(solver: NewtonSolver) -> None:
+    """Contact must not move with the load factor: an obstacle or tool with a motion or a rotation is refused."""
+    for energy in getattr(solver.external, "energies", ()):
+        placement = getattr(energy, "obstacle", None) or getattr(energy, "tool", None)
+        if placement is not None and (placement.motion is not None or placement.rotation is not None):
+            where = getattr(energy, "where", type(energy).__name__)
+            raise ParameterError(
+                f"continue_arc_length: {where} moves (motion or rotation), which the continuation cannot follow "
+                "(its load factor goes up and down); hold the obstacle still and load the body instead"
+            )
+
+
 class _Continuation:
     """The bordered Newton iteration on a :class:`~hyperfem.solver.NewtonSolver`'s assembly and linear solver."""
 
     def __init__(self, solver: NewtonSolver, settings: ArcLength) -> None:
-        if solver.external:
-            raise ParameterError(
-                "continue_arc_length: contact (external energies) with arc-length continuation is not available yet"
-            )
+        _check_static_obstacles(solver)
         self.solver = solver
         self.settings = settings
         self.problem = solver.problem
@@ -770,6 +790,13 @@ class ArcLengthStage(QuasiStaticStage):
         # CAP_GROWTH per step (a long step from near the bifurcation point may fall back onto the old branch).
         length = abs(dt) if self._cap is None else min(abs(dt), self._cap)
         path.arc = length * self.factor
+        end = self.settings.end
+        if end is not None and self._cap is None and abs(self._time + dt - end) <= 1e-12 * max(1.0, abs(end)):
+            # The step the policy clipped to land on `end`: its arc from the current slope dλ/ds, not the start's
+            # (a path that stiffened, such as a body pressed on an obstacle, would otherwise creep toward `end`
+            # by a few per cent of the gap a step); at most LANDING_STRETCH times the usual arc.
+            if path.slope * dt > 0:
+                path.arc = min(abs(dt) / abs(path.slope), LANDING_STRETCH * path.arc)
         self._before = (self.problem.u.x.array.copy(), path.sign, path.slope)
         path.tangent.copy(self._tangent_before)
         self._run.load_state(self._time)
@@ -842,6 +869,8 @@ class ArcLengthStage(QuasiStaticStage):
         path.negative_prev = negative
         self._time, self.last_increment, self._pending = lam, dlam, None
         self.steps += 1
+        if self.solver.external:  # contact: the accepted state anchors the next step's pull-back and friction lag
+            self.solver.external.remember()
 
     def _body_size(self) -> float:
         """The diagonal of the body's bounding box (reference configuration; collective)."""
@@ -986,7 +1015,7 @@ def continue_arc_length(
         ConvergenceError: The arc length fell below its minimum, or
             ``max_attempts`` were spent; ``time`` is the last load factor
             reached and ``history`` the accepted steps (the state is the last one).
-        ParameterError: A solver with contact, or a problem whose loads and
+        ParameterError: A contact obstacle that moves, or a problem whose loads and
             prescribed displacements do not change with the load factor.
     """
     s = ArcLength() if settings is None else settings
