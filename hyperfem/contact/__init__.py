@@ -19,7 +19,8 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   :class:`SurfaceContact` (self-contact, two bodies of one mesh;
   :mod:`~hyperfem.contact.bodies`) and :class:`ToolContact` (a rigid
   triangulated tool from an STL/OBJ/gmsh file or arrays, moving on a path and turning;
-  :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`).
+  :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`). In 2D
+  (plane strain, triangles or quadrilaterals) between boundary segments, a tool a polyline.
 * Gluing: :class:`TieContact` (two groups of non-matching meshes held
   together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).
 * :class:`ContactField` (:mod:`~hyperfem.contact.field`): the nodal contact

@@ -2,7 +2,8 @@ r"""Contact between the surfaces of deformable bodies: self-contact and two bodi
 
 :class:`SurfaceContact` names one or more boundary groups; every triangle and
 edge of them may touch every other one (of the same group — self-contact —
-or of another group) except the primitives that share a node. Its
+or of another group) except the primitives that share a node; in 2D the
+boundary edges (segments) of the groups. Its
 :meth:`~SurfaceContact.bind` gives a :class:`~hyperfem.contact.mesh_barrier.MeshBarrier`,
 the IPC barrier of the primitive pairs from ``ipctk``, an
 :class:`~hyperfem.solver.external.ExternalEnergy` of
@@ -59,7 +60,7 @@ def surface_defaults(
     if dhat is None:
         dhat = DHAT_FRACTION * min(facet_size(problem.domain, name) for name in boundaries)
     if stiffness is None:
-        k = mean_tangent_diagonal(problem, dofs, np.full(3, 1.0 / 3.0))
+        k = mean_tangent_diagonal(problem, dofs, np.full(dofs.shape[1], 1.0 / dofs.shape[1]))
         stiffness = STIFFNESS_FACTOR * k / (2.0 * dhat * dhat)
     return float(dhat), float(stiffness)
 
@@ -111,8 +112,8 @@ class SurfaceContact:
 
         Raises:
             UnknownGroupError: A boundary group does not exist (the message lists them).
-            ParameterError: Not a 3D degree-1/2 problem on tetrahedra or hexahedra, or the surfaces start touching or
-                intersecting (the message says where).
+            ParameterError: Not a degree-1/2 problem on tetrahedra or hexahedra (3D) or triangles or quadrilaterals
+                (2D), or the surfaces start touching or intersecting (the message says where).
         """
         surface = contact_surface(problem, self.boundaries, self.where)
         dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)

@@ -17,6 +17,10 @@ from ``ipctk``. The pair set :math:`C(x)` is rebuilt at every state the
 solver evaluates, line-search trial states included, from the candidates of
 a broad phase (``HashGrid``) with boxes inflated by :math:`\hat d`.
 
+**2D** (plane strain): the collision mesh is the boundary segments
+(:mod:`~hyperfem.contact.surface`), a tool a polyline, and the pairs are
+edge–vertex (with their vertex–vertex cases); the rest is the same.
+
 **Tangent.** A pair couples the nodes of different elements (of different
 bodies), outside the finite-element sparsity pattern: the entries are added
 to the tangent with PETSc allowed to allocate new nonzeros
@@ -106,8 +110,8 @@ class RigidSurface:
     (:mod:`~hyperfem.contact.obstacles`).
 
     Args:
-        points: Vertex positions at ``profile(t) = 0``, shape ``(k, 3)``.
-        faces: Triangles, shape ``(f, 3)``, indices into ``points``.
+        points: Vertex positions at ``profile(t) = 0``, shape ``(k, 3)`` (3D) or ``(k, 2)`` (2D).
+        faces: Triangles, shape ``(f, 3)`` (3D), or segments, shape ``(f, 2)`` (2D), indices into ``points``.
         motion: The translation :math:`m` (``None``: it stays), or a path: a
             callable giving the translation at ``t`` (then ``profile`` is not used).
         profile: :math:`f(t)` of the translation.
@@ -122,8 +126,10 @@ class RigidSurface:
         profile: Callable[[float], float],
         rotation: RigidRotation | None = None,
     ):
-        self.points = np.asarray(points, dtype=float).reshape(-1, 3)
-        self.faces = np.asarray(faces, dtype=np.int32).reshape(-1, 3)
+        points = np.asarray(points, dtype=float)
+        self.dim = int(points.shape[1]) if points.ndim == 2 else 3
+        self.points = points.reshape(-1, self.dim)
+        self.faces = np.asarray(faces, dtype=np.int32).reshape(-1, self.dim)
         self.motion = motion if motion is None or callable(motion) else np.asarray(motion, dtype=float)
         self.profile = profile
         self.rotation = rotation
@@ -131,9 +137,9 @@ class RigidSurface:
     def offset(self, t: float) -> np.ndarray:
         """The translation :math:`s(t)` (:math:`f(t)\\,m`, or the path's) at time (load factor) ``t``."""
         if self.motion is None:
-            return np.zeros(3)
+            return np.zeros(self.dim)
         if callable(self.motion):
-            return np.asarray(self.motion(t), dtype=float).reshape(3)
+            return np.asarray(self.motion(t), dtype=float).reshape(self.dim)
         return float(self.profile(t)) * self.motion
 
     def vertices(self, t: float) -> np.ndarray:
@@ -142,7 +148,7 @@ class RigidSurface:
         return points + self.offset(t)
 
     def transfer(self, x: np.ndarray, t_from: float, t: float) -> np.ndarray:
-        """Points ``(m, 3)`` moved rigidly with the tool from its placement at ``t_from`` to the one at ``t``."""
+        """Points ``(m, d)`` moved rigidly with the tool from its placement at ``t_from`` to the one at ``t``."""
         x = np.asarray(x, dtype=float)
         if self.rotation is None:
             return x + (self.offset(t) - self.offset(t_from))
@@ -172,17 +178,19 @@ def ray_hits(origins: np.ndarray, direction: np.ndarray, triangles: np.ndarray) 
 
     ``inf`` and -1 where the ray hits none.
 
-    Möller–Trumbore, vectorised over origins × triangles in chunks.
+    Möller–Trumbore, vectorised over origins × triangles in chunks; in 2D the first segment (:func:`_ray_hits_2d`).
 
     Args:
-        origins: Shape ``(m, 3)``.
-        direction: Shape ``(3,)``, or one unit vector per origin, ``(m, 3)``.
-        triangles: Corner positions, shape ``(f, 3, 3)``.
+        origins: Shape ``(m, 3)`` (2D: ``(m, 2)``).
+        direction: Shape ``(3,)``, or one unit vector per origin, ``(m, 3)`` (2D: 2 components).
+        triangles: Corner positions, shape ``(f, 3, 3)`` (2D: segments, ``(f, 2, 2)``).
     """
     out = np.full(len(origins), np.inf)
     index = np.full(len(origins), -1, dtype=np.int64)
     if not len(origins) or not len(triangles):
         return out, index
+    if triangles.shape[-1] == 2:
+        return _ray_hits_2d(origins, direction, triangles)
     a = triangles[:, 0]
     e1 = triangles[:, 1] - a
     e2 = triangles[:, 2] - a
@@ -201,6 +209,32 @@ def ray_hits(origins: np.ndarray, direction: np.ndarray, triangles: np.ndarray) 
         b2 = np.einsum("mfi,mi->mf", q, d) * inv
         t = np.einsum("mfi,fi->mf", q, e2) * inv
         inside = ok & (b1 >= 0.0) & (b2 >= 0.0) & (b1 + b2 <= 1.0) & (t >= 0.0)
+        t = np.where(inside, t, np.inf)
+        first = t.argmin(axis=1)
+        out[start : start + chunk] = t[np.arange(len(o)), first]
+        index[start : start + chunk] = np.where(np.isfinite(out[start : start + chunk]), first, -1)
+    return out, index
+
+
+def _ray_hits_2d(origins: np.ndarray, direction: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ray_hits` in the plane: the first segment ``(f, 2, 2)`` each ray from ``origins`` ``(m, 2)`` hits."""
+    out = np.full(len(origins), np.inf)
+    index = np.full(len(origins), -1, dtype=np.int64)
+    a = segments[:, 0]
+    e = segments[:, 1] - a
+    directions = np.broadcast_to(np.asarray(direction, dtype=float), origins.shape)
+    chunk = max(1, 2_000_000 // max(1, len(segments)))
+    for start in range(0, len(origins), chunk):
+        o = origins[start : start + chunk]
+        d = directions[start : start + chunk]
+        # o + t d = a + b e: t = (s x e) / (d x e), b = (s x d) / (d x e), s = a - o, x the scalar cross product.
+        det = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (m, f)
+        ok = np.abs(det) > 1e-300
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        s = a[None, :, :] - o[:, None, :]  # (m, f, 2)
+        t = (s[..., 0] * e[None, :, 1] - s[..., 1] * e[None, :, 0]) * inv
+        b = (s[..., 0] * d[:, None, 1] - s[..., 1] * d[:, None, 0]) * inv
+        inside = ok & (b >= 0.0) & (b <= 1.0) & (t >= 0.0)
         t = np.where(inside, t, np.inf)
         first = t.argmin(axis=1)
         out[start : start + chunk] = t[np.arange(len(o)), first]
@@ -264,7 +298,11 @@ class MeshBarrier:
         if tool is not None:
             faces = np.vstack([faces, tool.faces + n])
             rest = np.vstack([rest, tool.vertices(problem.time)])
-        self.mesh = ipctk.CollisionMesh(_f(rest), np.asfortranarray(ipctk.edges(faces)), np.asfortranarray(faces))
+        self.dim = surface.dim
+        if self.dim == 2:  # segments: the edges themselves, no faces (ipctk's 2D collision mesh: edge-vertex pairs)
+            self.mesh = ipctk.CollisionMesh(_f(rest), np.asfortranarray(faces, dtype=np.int32))
+        else:
+            self.mesh = ipctk.CollisionMesh(_f(rest), np.asfortranarray(ipctk.edges(faces)), np.asfortranarray(faces))
         if tool is not None:
             self.mesh.can_collide = ipctk.make_static_obstacle_filter(n)  # no tool–tool pairs
         self.potential = ipctk.BarrierPotential(self.dhat, self.stiffness)
@@ -272,10 +310,10 @@ class MeshBarrier:
         # The sweep check of a start state looks for primitives that meet on the way, not for ones that come close.
         self._sweep_ccd = ipctk.AdditiveCCD(conservative_rescaling=SWEEP_RESCALING)
         # The global dof of every collision-mesh dof (-1: a tool's) and whether it is a Dirichlet dof.
-        tool_dofs = 0 if tool is None else 3 * len(tool.points)
+        tool_dofs = 0 if tool is None else self.dim * len(tool.points)
         self._global = np.concatenate([surface.global_dofs.ravel(), np.full(tool_dofs, -1, dtype=np.int64)])
         self._fixed = np.concatenate([surface.constrained.ravel(), np.ones(tool_dofs, dtype=bool)])
-        own = (3 * surface.rows[:, None] + np.arange(3)).ravel()
+        own = (self.dim * surface.rows[:, None] + np.arange(self.dim)).ravel()
         self._own = np.zeros(len(self._global), dtype=bool)
         self._own[own] = True
         self._cache: tuple[np.ndarray, Any] | None = None
@@ -384,12 +422,12 @@ class MeshBarrier:
     def _friction_gradient(self, u: np.ndarray) -> np.ndarray:
         slip = self._slip(u)
         if slip is None:
-            return np.zeros(3 * (self.surface.size + (0 if self.tool is None else len(self.tool.points))))
+            return np.zeros(self.dim * (self.surface.size + (0 if self.tool is None else len(self.tool.points))))
         return np.asarray(self._friction.gradient(slip[0], self.mesh, slip[1])).ravel()  # type: ignore[union-attr, unused-ignore]
 
     def friction_force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
         r"""The friction force on the body's surface nodes, :math:`-\sum_a \partial D/\partial x_a`."""
-        g = self._friction_gradient(self._state(u)).reshape(-1, 3)[: self.surface.size]
+        g = self._friction_gradient(self._state(u)).reshape(-1, self.dim)[: self.surface.size]
         return -g.sum(axis=0)
 
     # -- the ExternalEnergy contract ----------------------------------------
@@ -417,7 +455,7 @@ class MeshBarrier:
         g = self._gradient_full(u)
         if self._friction is not None:
             g = g + self._friction_gradient(u)
-        return self.surface.dofs, g.reshape(-1, 3)[self.surface.rows]
+        return self.surface.dofs, g.reshape(-1, self.dim)[self.surface.rows]
 
     def _gradient_at(self, u: np.ndarray, time: float) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_own_gradient` with the tool placed at ``time``; placed back after (collective)."""
@@ -429,7 +467,7 @@ class MeshBarrier:
             self._place(now)
 
     def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r""":math:`\partial\kappa B/\partial u` at this rank's owned surface nodes: ``(dofs, values)``, ``(m, 3)``.
+        r""":math:`\partial\kappa B/\partial u` at this rank's owned surface nodes: ``(dofs, values)``, ``(m, d)``.
 
         Interpolated during a generalized-:math:`\alpha` step (:mod:`~hyperfem.contact.interpolation`).
         """
@@ -437,7 +475,7 @@ class MeshBarrier:
 
     def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """No node blocks: the Hessian couples nodes and comes from :meth:`coupled_hessian`."""
-        return self.surface.dofs[:0], np.zeros((0, 3, 3))
+        return self.surface.dofs[:0], np.zeros((0, self.dim, self.dim))
 
     def coupled_hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The PSD-projected Hessian's entries in this rank's owned rows: global ``(rows, cols, values)``.
@@ -479,7 +517,7 @@ class MeshBarrier:
         Moved rigidly with the tool it keeps its position relative to the tool
         exactly.
         """
-        empty = (self.surface.dofs[:0], np.zeros((0, 3)))
+        empty = (self.surface.dofs[:0], np.zeros((0, self.dim)))
         if self.tool is None or not len(self.surface.rows):
             return empty
         t_from = obstacle_time(self.problem, t_from)  # where the tool was at the anchor
@@ -526,8 +564,8 @@ class MeshBarrier:
         increment = (self.surface.displacements(target) - self.surface.displacements(u)) * self.surface.constrained
         moving = np.abs(increment).max(axis=1) > 0.0
         if not len(collisions) or not np.any(moving):
-            return self.surface.dofs[:0], np.zeros((0, 3))
-        total = np.zeros((n, 3))
+            return self.surface.dofs[:0], np.zeros((0, self.dim))
+        total = np.zeros((n, self.dim))
         count = np.zeros(n)
         for k in range(len(collisions)):
             ids = [int(v) for v in collisions[k].vertex_ids(self.mesh.edges, self.mesh.faces) if 0 <= v < n]
@@ -608,7 +646,7 @@ class MeshBarrier:
             u: The unknown's local array or a SNES vector (default: the current state).
             group: Index into the surface's boundaries (``None``: every node).
         """
-        g = self._gradient_full(self._state(u)).reshape(-1, 3)[: self.surface.size]
+        g = self._gradient_full(self._state(u)).reshape(-1, self.dim)[: self.surface.size]
         if group is not None:
             g = g[self.surface.group == group]
         return -g.sum(axis=0)
@@ -616,14 +654,18 @@ class MeshBarrier:
     def moment(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
         r"""The moment about the origin of the contact forces (friction included) on the surface nodes.
 
-        :math:`\sum_a x_a \times f_a`, the same on every rank (collective).
+        :math:`\sum_a x_a \times f_a`, the same on every rank (collective); zero-padded to 3 components in 2D
+        (the moment about z in the last).
         """
         state = self._state(u)
         g = self._gradient_full(state)
         if self._friction is not None:
             g = g + self._friction_gradient(state)
         x = self.surface.positions(state)
-        return np.cross(x, -g.reshape(-1, 3)[: self.surface.size]).sum(axis=0)
+        f = -g.reshape(-1, self.dim)[: self.surface.size]
+        if self.dim == 2:
+            return np.array([0.0, 0.0, float((x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0]).sum())])
+        return np.cross(x, f).sum(axis=0)
 
     def summary(self) -> dict[str, object]:
         """The summary's ``contact`` entry: type, boundaries, last force (the output's), moment, pairs, gap."""
@@ -652,7 +694,7 @@ class MeshBarrier:
         r"""Per owned surface node, the smallest distance of the pairs closer than :math:`\hat d` it belongs to.
 
         :math:`\hat d` where it is in none (out of the barrier's reach: a gap belongs to a pair of primitives, the
-        node's is the closest of its pairs). Returns ``(dofs, gaps)``, shapes ``(m, 3)`` and ``(m,)``.
+        node's is the closest of its pairs). Returns ``(dofs, gaps)``, shapes ``(m, d)`` and ``(m,)``.
         """
         V = self.vertices(self._state(u))
         collisions = self._collisions(V)

@@ -20,8 +20,12 @@ triangle is split into four linear sub-triangles on its six nodes (vertices
 and edge midpoints), so every node is a vertex of the collision mesh and the
 barrier acts on every displacement node of the boundary. On hexahedra a Q1
 face is split into two triangles and a Q2 face into eight on its nine nodes
-(corners, edge midpoints, centre). 3D meshes of tetrahedra or hexahedra; other
-cells are refused in one line.
+(corners, edge midpoints, centre).
+
+In 2D (plane strain, triangles or quadrilaterals) the boundary is made of
+edges: the collision mesh is segments (``ipctk``'s 2D collision mesh: no
+faces, edge–vertex pairs), a degree-1 edge one segment, a degree-2 edge two
+segments through its midpoint node. Other cells are refused in one line.
 """
 
 from __future__ import annotations
@@ -46,13 +50,15 @@ class ContactSurface:
 
     Attributes:
         boundaries: The boundary groups it is made of.
-        X: Reference positions of the surface nodes, shape ``(n, 3)``, the same on every rank.
-        faces: Triangles, shape ``(f, 3)``, indices into :attr:`X`.
+        X: Reference positions of the surface nodes, shape ``(n, d)`` (``d`` the mesh's dimension, 2 or 3), the
+            same on every rank.
+        faces: The collision mesh's facets, indices into :attr:`X`: triangles ``(f, 3)`` in 3D, segments
+            ``(f, 2)`` in 2D.
         group: Index into :attr:`boundaries` of each node's (first) group, shape ``(n,)``.
-        global_dofs: The global (PETSc) dofs of each node's components, shape ``(n, 3)``.
-        constrained: Whether each component is a Dirichlet dof, shape ``(n, 3)``.
+        global_dofs: The global (PETSc) dofs of each node's components, shape ``(n, d)``.
+        constrained: Whether each component is a Dirichlet dof, shape ``(n, d)``.
         rows: This rank's owned nodes: indices into :attr:`X`.
-        dofs: Their local dofs in the unknown's array, shape ``(len(rows), 3)``.
+        dofs: Their local dofs in the unknown's array, shape ``(len(rows), d)``.
         comm: The communicator.
     """
 
@@ -71,8 +77,13 @@ class ContactSurface:
         """The number of surface nodes."""
         return len(self.X)
 
+    @property
+    def dim(self) -> int:
+        """The number of components of a node, 2 or 3."""
+        return int(self.X.shape[1])
+
     def displacements(self, u: np.ndarray) -> np.ndarray:
-        """The displacement of every surface node, shape ``(n, 3)``, from the unknown's local array (collective)."""
+        """The displacement of every surface node, shape ``(n, d)``, from the unknown's local array (collective)."""
         parts = self.comm.allgather((self.rows, u[self.dofs]))
         out = np.empty_like(self.X)
         for rows, values in parts:
@@ -80,7 +91,7 @@ class ContactSurface:
         return out
 
     def positions(self, u: np.ndarray) -> np.ndarray:
-        """Current positions :math:`X + u` of every surface node, shape ``(n, 3)`` (collective)."""
+        """Current positions :math:`X + u` of every surface node, shape ``(n, d)`` (collective)."""
         return self.X + self.displacements(u)
 
 
@@ -132,11 +143,19 @@ def _triangles(cell_type: str, vertices: list[int], grid: list[list[int]] | None
     return out
 
 
+def _segments(vertices: list[int], middle: int | None) -> list[list[int]]:
+    """The segments of a 2D boundary edge: the edge (degree 1), or its two halves through the midpoint node."""
+    a, b = vertices
+    return [[a, b]] if middle is None else [[a, middle], [middle, b]]
+
+
 def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndarray], spaces: list) -> np.ndarray:
-    """The linear triangles of this rank's owned facets of ``boundary``: local dofs of the x component, ``(t, 3)``.
+    """The linear triangles (3D) or segments (2D) of this rank's owned facets of ``boundary``: local dofs of the x
+    component, ``(t, 3)`` or ``(t, 2)``.
 
     Tetrahedra: a P1 facet is one triangle, a P2 facet four on its six nodes. Hexahedra: a Q1 face is two
-    triangles, a Q2 face eight on its nine nodes. Every displacement node of the facet is a vertex.
+    triangles, a Q2 face eight on its nine nodes. Triangles and quadrilaterals: a degree-1 edge is one segment, a
+    degree-2 edge two. Every displacement node of the facet is a vertex.
     """
     domain = problem.domain
     mesh = domain.mesh
@@ -162,43 +181,51 @@ def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndar
         def node(dim: int, entity: int, cell_dofs: np.ndarray = cell_dofs) -> int:
             return int(parents[0][cell_dofs[layout.entity_dofs(dim, entity)[0]]])
 
-        vertices = [node(0, v) for v in topology[2][local]]
+        vertices = [node(0, v) for v in topology[fdim][local]]
+        if tdim == 2:
+            out += _segments(vertices, node(1, local) if degree == 2 else None)
+            continue
         grid = _facet_node_grid(topology, cell_type, local, node) if degree == 2 else None
         out += _triangles(cell_type, vertices, grid)
-    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+    return np.asarray(out, dtype=np.int64).reshape(-1, tdim)
 
 
 def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str) -> ContactSurface:
     """The collision surface of ``boundaries`` on every rank (collective; module docstring).
 
     Args:
-        problem: The problem (its displacement space: degree 1 or 2 on tetrahedra or hexahedra).
+        problem: The problem (its displacement space: degree 1 or 2 on tetrahedra or hexahedra, or in 2D on
+            triangles or quadrilaterals).
         boundaries: Boundary group names.
         where: The contact, for messages.
 
     Raises:
         UnknownGroupError: A group does not exist (the message lists those that do).
-        ParameterError: Not a 3D mesh of tetrahedra or hexahedra, a degree other than 1 or 2, or no facets.
+        ParameterError: Not a 3D mesh of tetrahedra or hexahedra or a 2D mesh of triangles or quadrilaterals, a
+            degree other than 1 or 2, or no facets.
     """
     domain = problem.domain
     comm = domain.comm
     for name in boundaries:
         domain.facet_tag(name)  # UnknownGroupError listing the groups, on every rank
     cell = domain.mesh.topology.cell_name()
-    if domain.gdim != 3 or cell not in ("tetrahedron", "hexahedron"):
+    supported = {2: ("triangle", "quadrilateral"), 3: ("tetrahedron", "hexahedron")}
+    gdim = domain.gdim
+    if cell not in supported.get(gdim, ()) or domain.tdim != gdim:
         raise ParameterError(
-            f"{where}: mesh contact needs a 3D mesh of tetrahedra or hexahedra, got {domain.gdim}D {cell} cells"
+            f"{where}: mesh contact needs a 3D mesh of tetrahedra or hexahedra or a 2D mesh of triangles or "
+            f"quadrilaterals, got {gdim}D {cell} cells"
         )
     V = problem.displacement_space()
-    subs = [V.sub(i).collapse() for i in range(3)]
+    subs = [V.sub(i).collapse() for i in range(gdim)]
     spaces = [s[0] for s in subs]
     parents = [np.asarray(s[1], dtype=np.int64).reshape(-1) for s in subs]  # 0.11: a list of one array
     degree = spaces[0].element.basix_element.degree
     if degree not in (1, 2):
         raise ParameterError(f"{where}: mesh contact supports displacement degree 1 or 2, got {degree}")
     # The local dofs of the other components of a node: the collapsed spaces share one layout.
-    to_component = [np.full(problem.u.x.array.size, -1, dtype=np.int64) for _ in range(3)]
-    for i in range(3):
+    to_component = [np.full(problem.u.x.array.size, -1, dtype=np.int64) for _ in range(gdim)]
+    for i in range(gdim):
         to_component[i][parents[0]] = parents[i]
     gdofs = global_dofs(problem)
     W = problem.u.function_space
@@ -222,23 +249,23 @@ def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str
     inverse[parents[0]] = np.arange(len(parents[0]))
     mine = []
     for key, (k, d) in nodes.items():
-        comps = [int(to_component[i][d]) for i in range(3)]
+        comps = [int(to_component[i][d]) for i in range(gdim)]
         mine.append((key, k, comps, [int(gdofs[c]) for c in comps], [bool(constrained[c]) for c in comps],
-                     coordinates[inverse[d], :3].tolist()))
+                     coordinates[inverse[d], :gdim].tolist()))
     gathered = comm.allgather(mine)
-    faces_all = np.concatenate(comm.allgather(np.concatenate(triangles) if triangles else np.zeros((0, 3))))
+    faces_all = np.concatenate(comm.allgather(np.concatenate(triangles) if triangles else np.zeros((0, gdim))))
     every = sorted((item for part in gathered for item in part), key=lambda item: item[0])
     keys = np.array([item[0] for item in every], dtype=np.int64)
     if not len(keys) or not len(faces_all):
         raise ParameterError(f"{where}: the boundary groups {list(boundaries)} have no facets")
-    X = np.array([item[5] for item in every], dtype=float).reshape(-1, 3)
+    X = np.array([item[5] for item in every], dtype=float).reshape(-1, gdim)
     group = np.array([item[1] for item in every], dtype=np.int32)
-    gd = np.array([item[3] for item in every], dtype=np.int64).reshape(-1, 3)
-    fixed = np.array([item[4] for item in every], dtype=bool).reshape(-1, 3)
+    gd = np.array([item[3] for item in every], dtype=np.int64).reshape(-1, gdim)
+    fixed = np.array([item[4] for item in every], dtype=bool).reshape(-1, gdim)
     faces = np.searchsorted(keys, faces_all.astype(np.int64)).astype(np.int32)
     _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)  # a facet in two groups: once
     faces = faces[np.sort(first)]
     rank_keys = np.array([item[0] for item in mine], dtype=np.int64)
     rows = np.searchsorted(keys, rank_keys).astype(np.int64)
-    dofs = np.array([item[2] for item in mine], dtype=np.int64).reshape(-1, 3)
+    dofs = np.array([item[2] for item in mine], dtype=np.int64).reshape(-1, gdim)
     return ContactSurface(tuple(boundaries), X, faces, group, gd, fixed, rows, dofs, comm)

@@ -15,6 +15,12 @@ through a body face between its nodes, nor a body node pass through a tool
 face. The tool's output force (``<name>_force``) is the force the tool
 exerts on the body.
 
+In 2D (plane strain) the tool is a polyline given as arrays: points
+``(k, 2)`` and segments ``(s, 2)`` (:meth:`ToolContact.from_arrays`; the
+``triangles`` entry holds the segments), its motion and offset 2 components,
+no rotation; the pairs are edge–vertex pairs between the body's boundary
+segments and the tool's. A tool file gives triangles: a 3D tool.
+
 Example::
 
     tool = hf.contact.ToolContact(["top"], file="meshes/spatula.stl", motion=(0, 0, -0.3)).bind(problem)
@@ -92,8 +98,8 @@ class ToolContact:
         friction_epsilon: The slip length :math:`\epsilon > 0` below which a pair sticks elastically
             (``None``: :math:`0.1\,\hat d`).
         name: Prefix of the output columns.
-        points: The tool's points (instead of ``file``).
-        triangles: The tool's triangles (instead of ``file``).
+        points: The tool's points (instead of ``file``): ``(k, 3)``, or ``(k, 2)`` for a 2D polyline tool.
+        triangles: The tool's triangles ``(f, 3)`` (instead of ``file``), or its segments ``(s, 2)`` in 2D.
         rotation: A :class:`~hyperfem.loading.RigidRotation` of the tool about a pivot of its placed points
             (after ``offset`` and ``scale``), composed with the translation: :math:`x(t) = R(\theta(t))(X - c_r)
             + c_r + s(t)` (``None``: it does not turn; :mod:`~hyperfem.contact.obstacles`).
@@ -122,17 +128,21 @@ class ToolContact:
     def __post_init__(self) -> None:
         names, where = check_boundaries(self.boundaries, "ToolContact")
         object.__setattr__(self, "boundaries", tuple(names))
-        check_rotation(self.rotation, 3, where)
+        given = None if self.points is None else np.asarray(self.points)
+        dim = 2 if self.file is None and given is not None and given.ndim == 2 and given.shape[1] == 2 else 3
+        check_rotation(self.rotation, dim, where)
         if callable(self.motion):
             start = np.asarray(self.motion(0.0), dtype=float)
-            if start.shape != (3,) or not np.all(np.isfinite(start)):
-                raise ParameterError(f"{where}: a motion path must give 3 finite components, got {start!r} at t = 0")
+            if start.shape != (dim,) or not np.all(np.isfinite(start)):
+                raise ParameterError(
+                    f"{where}: a motion path must give {dim} finite components, got {start!r} at t = 0"
+                )
         for key in ("motion", "offset"):
             value = getattr(self, key)
             if value is not None and not callable(value):
                 vector = check_finite_vector(value, where, key)
-                if len(vector) != 3:
-                    raise ParameterError(f"{where}: {key} must have 3 components, got {len(vector)}")
+                if len(vector) != dim:
+                    raise ParameterError(f"{where}: {key} must have {dim} components, got {len(vector)}")
                 object.__setattr__(self, key, vector)
         if not (isinstance(self.scale, (int, float)) and np.isfinite(self.scale) and self.scale > 0):
             raise ParameterError(f"{where}: scale must be a number > 0, got {self.scale!r}")
@@ -149,11 +159,14 @@ class ToolContact:
                 raise ParameterError(f"{where}: points need triangles")
             points = np.asarray(self.points, dtype=float)
             faces = np.asarray(self.triangles, dtype=np.int64)
-            if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
-                raise ParameterError(f"{where}: points must be finite, shape (k, 3), got shape {points.shape}")
-            if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(points):
-                raise ParameterError(f"{where}: triangles must be (f, 3) indices into points")
-        points = points * float(self.scale) + (np.zeros(3) if self.offset is None else np.asarray(self.offset))
+            if points.ndim != 2 or points.shape[1] != dim or not np.all(np.isfinite(points)):
+                raise ParameterError(
+                    f"{where}: points must be finite, shape (k, 3) (or (k, 2) in 2D), got shape {points.shape}"
+                )
+            if faces.ndim != 2 or faces.shape[1] != dim or faces.min() < 0 or faces.max() >= len(points):
+                kind = "triangles must be (f, 3)" if dim == 3 else "the segments of a 2D tool must be (s, 2)"
+                raise ParameterError(f"{where}: {kind} indices into points")
+        points = points * float(self.scale) + (np.zeros(dim) if self.offset is None else np.asarray(self.offset))
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "triangles", np.asarray(faces, dtype=np.int32))
 
@@ -161,7 +174,8 @@ class ToolContact:
     def from_arrays(
         cls, boundaries: Sequence[str], points: np.ndarray, triangles: np.ndarray, **kwargs: object
     ) -> ToolContact:
-        """A tool given as ``points`` ``(k, 3)`` and ``triangles`` ``(f, 3)`` (the other entries as for the class)."""
+        """A tool given as ``points`` ``(k, 3)`` and ``triangles`` ``(f, 3)``, or in 2D a polyline: ``points``
+        ``(k, 2)`` and segments ``(s, 2)`` (the other entries as for the class)."""
         return cls(boundaries, points=points, triangles=triangles, **kwargs)  # type: ignore[arg-type]
 
     @property
@@ -181,13 +195,19 @@ class ToolContact:
 
         Raises:
             UnknownGroupError: A boundary group does not exist (the message lists them).
-            ParameterError: Not a 3D degree-1/2 problem on tetrahedra or hexahedra, or the tool starts touching or
-                inside the body.
+            ParameterError: Not a degree-1/2 problem on tetrahedra or hexahedra (3D) or triangles or quadrilaterals
+                (2D), a tool of another dimension than the mesh, or the tool starts touching or inside the body.
         """
         surface = contact_surface(problem, self.boundaries, self.where)
+        tool = self.surface
+        if tool.dim != surface.dim:
+            wanted = "a polyline, points (k, 2) and segments (s, 2)" if surface.dim == 2 else "triangles in 3D"
+            raise ParameterError(
+                f"{self.where}: a {tool.dim}D tool on a {surface.dim}D mesh; give {wanted} (ToolContact.from_arrays)"
+            )
         dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
         return MeshBarrier(
             self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
             friction=self.friction, friction_epsilon=self.friction_epsilon,
-            tool=self.surface,
+            tool=tool,
         )

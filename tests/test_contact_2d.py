@@ -1,0 +1,315 @@
+r"""Mesh contact in 2D (plane strain): the boundary edges of triangles and quadrilaterals as segments.
+
+The patch test of ``test_contact_surfaces.py`` in the plane: two unit squares
+of one mesh (``lower`` below :math:`y = 0`, ``upper`` above :math:`y = g`,
+meshed independently: non-matching edges where they meet), a roller on
+:math:`x = 0`, the bottom of ``lower`` held in :math:`y`, the top of
+``upper`` pushed down by :math:`\delta`. Frictionless, the exact state is
+homogeneous plane-strain uniaxial stress of both squares (free lateral edge
+:math:`x = 1`): with :math:`F = \mathrm{diag}(\lambda_x, \lambda_y)` and the
+Neo-Hookean :math:`P = \mu F + (\lambda \ln J - \mu) F^{-T}`,
+:math:`J = \lambda_x\lambda_y`, the lateral stretch solves
+
+.. math::
+    P_{xx} = \mu\lambda_x + \frac{\lambda\ln(\lambda_x\lambda_y) - \mu}{\lambda_x} = 0,
+
+and the force through the interface (per unit thickness, the edge of length 1)
+equals the top reaction and :math:`P_{yy} = \mu\lambda_y + (\lambda\ln J - \mu)/\lambda_y`,
+with :math:`2\lambda_y = 2 + g - \delta - \bar g`, :math:`\bar g` the mean final gap.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+ipctk = pytest.importorskip("ipctk")
+
+import hyperfem as hf  # noqa: E402
+from dolfinx import mesh as dmesh  # noqa: E402
+from hyperfem.contact import SurfaceContact, ToolContact  # noqa: E402
+from hyperfem.contact.mesh_barrier import ray_hits  # noqa: E402
+from hyperfem.contact.surface import global_dofs  # noqa: E402
+from hyperfem.errors import ParameterError  # noqa: E402
+from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
+from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
+
+PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
+TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-12}
+GAP, DHAT = 5e-4, 1e-3
+
+
+def _plane_strain_pyy(stretch: float) -> float:
+    """:math:`P_{yy}` of the plane-strain Neo-Hookean in uniaxial stress (lateral stretch from :math:`P_{xx} = 0`)."""
+    from scipy.optimize import brentq
+
+    mu, lam = PARAMS.mu, PARAMS.lmbda
+    lx = brentq(lambda s: mu * s + (lam * np.log(stretch * s) - mu) / s, 0.5, 2.0)
+    return mu * stretch + (lam * np.log(stretch * lx) - mu) / stretch
+
+
+def _watch(solver, contact) -> list[float]:
+    """The smallest pair distance of every accepted Newton iterate."""
+    seen: list[float] = []
+    solver.snes.setMonitor(lambda snes, it, norm: seen.append(contact.min_distance(snes.getSolution())))
+    return seen
+
+
+def _squares(comm, n_lower: int, n_upper: int, cell: str = "triangle", degree: int = 1) -> hf.Domain:
+    """Two unit squares, ``n^2`` boxes each, one mesh (all cells read on rank 0); ``degree`` 2: curved-capable
+    geometry is not needed, the P2/Q2 displacement lives on the affine mesh."""
+    import basix.ufl
+    import ufl
+
+    cell_type = dmesh.CellType.triangle if cell == "triangle" else dmesh.CellType.quadrilateral
+    parts = []
+    for y0, n in ((-1.0, n_lower), (GAP, n_upper)):
+        corners = [np.array([0.0, y0]), np.array([1.0, y0 + 1.0])]
+        block = dmesh.create_rectangle(MPI.COMM_SELF, corners, [n, n], cell_type=cell_type)
+        parts.append((block.geometry.x[:, :2].copy(), np.asarray(block.geometry.dofmaps[0]).copy()))
+    k = parts[0][1].shape[1]
+    if comm.rank == 0:
+        x = np.vstack([parts[0][0], parts[1][0]])
+        cells = np.vstack([parts[0][1], parts[1][1] + len(parts[0][0])]).astype(np.int64)
+    else:
+        x, cells = np.zeros((0, 2)), np.zeros((0, k), dtype=np.int64)
+    element = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(2,)))
+    mesh = dmesh.create_mesh(comm, cells, element, x)
+    at = {"lower_bottom": (1, -1.0), "lower_top": (1, 0.0), "upper_bottom": (1, GAP), "upper_top": (1, 1.0 + GAP),
+          "x0": (0, 0.0)}
+    groups = {name: (lambda x, k=k, v=v: np.isclose(x[k], v)) for name, (k, v) in at.items()}
+    return hf.Domain.from_locators(mesh, groups, source=f"two {cell} squares")
+
+
+def _stacked(comm=MPI.COMM_WORLD, cell="triangle", n=(4, 3), degree=1, delta=0.2, boundaries=None, domain=None):
+    domain = domain or _squares(comm, *n, cell=cell)
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("lower_bottom", [0.0], components=[1]),
+        hf.PrescribedDisplacement("upper_top", [-delta], components=[1]),
+    ]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs, degree=degree)
+    contact = SurfaceContact(boundaries or ["lower_top", "upper_bottom"], dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    return problem, contact, iterates
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_two_squares_transmit_the_plane_strain_uniaxial_stress(cell):
+    """The patch test (module docstring): interface force = top reaction to 1e-8, = |P_yy| to 0.1 %; every accepted
+    iterate intersection-free."""
+    delta = 0.2
+    problem, contact, iterates = _stacked(cell=cell, delta=delta)
+    reaction = ReactionForce(problem, "upper_top")()
+    force = contact.force(group=0)  # on lower_top, from the upper square: downward
+    assert force.shape == (2,) and force[1] < 0.0
+    assert force[1] == pytest.approx(reaction[1], rel=1e-8)
+    surface = contact.surface
+    assert surface.dim == 2 and surface.faces.shape == (4 + 3, 2)
+    x = surface.positions(problem.u.x.array)
+    lower, upper = x[surface.group == 0, 1], x[surface.group == 1, 1]
+    stretch = (2.0 + GAP - delta - (upper.mean() - lower.mean())) / 2.0
+    assert -reaction[1] == pytest.approx(-_plane_strain_pyy(stretch), rel=1e-3)
+    # A lateral force of ~1e-3 |f_y| (measured 9.7e-4 triangles, 8.1e-4 quadrilaterals), balanced by the roller:
+    # the end vertices at x = 1 of the two non-matching edges, whose edge-vertex pairs act at the edge's end.
+    assert abs(force[0]) < 2e-3 * abs(force[1])
+    # Uniform pressure: both edges stay straight to a fraction of d-hat (measured 0.07-0.1 d-hat).
+    assert lower.std() < 0.3 * DHAT and upper.std() < 0.3 * DHAT
+    assert 0.0 < contact.min_distance() < DHAT and contact.active_count() > 0
+    assert min(iterates) > 0.0 and not contact.intersecting()
+
+
+def _stacked_state(comm) -> tuple[float, float]:
+    _, contact, _ = _stacked(comm)
+    return float(contact.force(group=0)[1]), contact.min_distance()
+
+
+def test_two_squares_one_rank_equals_two_ranks():
+    """The interface force on 2 ranks equals 1 rank's to 1e-4 (not tighter: the frictionless barrier between
+    non-matching facets has many equilibria, ``test_contact_surfaces.test_two_blocks_one_rank_equals_two_ranks``)."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    pc_setup_seconds()
+    one = _stacked_state(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    two = _stacked_state(comm)
+    assert two[0] == pytest.approx(one[0], rel=1e-4) and 0.0 < two[1] < DHAT and 0.0 < one[1] < DHAT
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_degree_two_edges_balance_the_reaction(cell):
+    """Degree 2: a boundary edge is two segments through its midpoint node; equilibrium holds to 1e-8 and nothing
+    intersects. The force is 2.2 % (P2 triangles) and 3.0 % (Q2) below |P_yy| (measured, 2 x 2 below, 1 x 1 above):
+    the nodal barrier on quadratic edges does not carry a uniform pressure (3D: P2 tetrahedra ~3 %, Q2 5.9 %)."""
+    delta = 0.2
+    problem, contact, iterates = _stacked(cell=cell, n=(2, 1), degree=2, delta=delta)
+    reaction = ReactionForce(problem, "upper_top")()
+    assert contact.force(group=0)[1] == pytest.approx(reaction[1], rel=1e-8) and reaction[1] < 0.0
+    surface = contact.surface
+    assert surface.faces.shape == (2 * (2 + 1), 2) and surface.size == 5 + 3  # every edge node a vertex
+    x = surface.positions(problem.u.x.array)
+    lower, upper = x[surface.group == 0, 1], x[surface.group == 1, 1]
+    stretch = (2.0 + GAP - delta - (upper.mean() - lower.mean())) / 2.0
+    assert -reaction[1] == pytest.approx(-_plane_strain_pyy(stretch), rel=0.05)
+    assert min(iterates) > 0.0 and 0.0 < contact.min_distance() < DHAT and not contact.intersecting()
+
+
+def test_self_contact_of_one_group_equals_the_pair():
+    """One boundary group holding both facing edges (self-contact of a group) gives the pair's reaction to 1e-4."""
+    pair_problem, pair, _ = _stacked()
+    stacked = _squares(MPI.COMM_WORLD, 4, 3)
+    groups = {
+        "facing": lambda x: np.isclose(x[1], 0.0) | np.isclose(x[1], GAP),
+        "x0": lambda x: np.isclose(x[0], 0.0),
+        "lower_bottom": lambda x: np.isclose(x[1], -1.0),
+        "upper_top": lambda x: np.isclose(x[1], 1.0 + GAP),
+    }
+    domain = hf.Domain.from_locators(stacked.mesh, groups, source="two squares, one facing group")
+    problem, contact, iterates = _stacked(domain=domain, boundaries=["facing"])
+    assert contact.surface.size == pair.surface.size and min(iterates) > 0.0
+    reaction = ReactionForce(pair_problem, "upper_top")()
+    assert ReactionForce(problem, "upper_top")() == pytest.approx(reaction, rel=1e-4, abs=1e-4 * abs(reaction[1]))
+
+
+def test_barrier_taylor():
+    """The 2D barrier's gradient and (exact) Hessian against its energy: Taylor remainders of order 2 and 3, with
+    the squares 0.4 d-hat apart (edge-vertex pairs active) and a random perturbation of the surface nodes."""
+    comm = MPI.COMM_WORLD
+    domain = _squares(comm, 4, 3)
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS))
+    barrier = SurfaceContact(["lower_top", "upper_bottom"], dhat=DHAT, stiffness=1.0).bind(problem)
+    surface = barrier.surface
+    u = problem.u.x.array.copy()
+    # The upper edge moved down to 0.3-0.4 d-hat above the lower one (tilted) and 0.01 along x: every vertex in reach
+    # projects inside an edge of the other side (the vertex-vertex pairs of the aligned corners at x = 0 and 1 would
+    # switch type under the perturbation, where the barrier is not twice differentiable).
+    upper = surface.group[surface.rows] == 1
+    x = surface.X[surface.rows, 0]
+    u[surface.dofs[upper, 1]] = -(GAP - 0.3 * DHAT + 1e-4 * x[upper])
+    u[surface.dofs[upper, 0]] = 0.01
+    assert barrier.active_count(u) == 7 and 0.0 < barrier.min_distance(u) < DHAT
+
+    def total(v):
+        return comm.allreduce(barrier.energy(v), op=MPI.SUM)
+
+    rng = np.random.default_rng(7)
+    du = np.zeros_like(u)
+    du[surface.dofs.ravel()] = rng.standard_normal(surface.dofs.size) * 1e-5
+    problem.u.x.array[:] = du
+    problem.u.x.scatter_forward()  # the owners' values on the ghosts too
+    du = problem.u.x.array.copy()
+    problem.u.x.array[:] = 0.0
+    dofs, g = barrier.gradient(u)
+    slope = comm.allreduce(float((g * du[dofs]).sum()), op=MPI.SUM)
+    rows, cols, values = barrier.coupled_hessian(u)
+    assert barrier.exact_tangent is False  # first tangent: projected; exact once the iterates settle
+    rows, cols, values = barrier.coupled_hessian(u)
+    assert barrier.exact_tangent is True
+    owned = problem.u.function_space.dofmap.index_map.size_local * 2
+    full = np.zeros(2 * problem.u.function_space.dofmap.index_map.size_global)
+    full[global_dofs(problem)[:owned]] = du[:owned]
+    full = comm.allreduce(full, op=MPI.SUM)  # du by global dof, from its owner
+    curvature = comm.allreduce(float((values * full[rows] * full[cols]).sum()), op=MPI.SUM)
+    e0 = total(u)
+    r1, r2 = [], []
+    for h in (1.0, 0.5, 0.25):
+        e = total(u + h * du)
+        r1.append(abs(e - e0 - h * slope))
+        r2.append(abs(e - e0 - h * slope - 0.5 * h * h * curvature))
+    assert r1[1] / r1[0] == pytest.approx(0.25, rel=0.1) and r1[2] / r1[1] == pytest.approx(0.25, rel=0.1)
+    assert r2[1] / r2[0] == pytest.approx(0.125, rel=0.2) and r2[2] / r2[1] == pytest.approx(0.125, rel=0.2)
+
+
+# -- a rigid polyline tool ------------------------------------------------------------------------------------------
+
+
+def _pressed_square(comm=MPI.COMM_WORLD, delta=0.2, cell="triangle"):
+    cell_type = dmesh.CellType.triangle if cell == "triangle" else dmesh.CellType.quadrilateral
+    mesh = dmesh.create_unit_square(comm, 3, 3, cell_type=cell_type)
+    groups = {"bottom": lambda x: np.isclose(x[1], 0.0), "top": lambda x: np.isclose(x[1], 1.0),
+              "x0": lambda x: np.isclose(x[0], 0.0)}
+    domain = hf.Domain.from_locators(mesh, groups, source="unit square")
+    bcs = [hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+           hf.PrescribedDisplacement("top", [-delta], components=[1])]
+    return hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+
+
+PLATE = np.array([[-1.0, -DHAT / 2], [0.7, -DHAT / 2], [3.0, -DHAT / 2]])  # two segments, a kink-free polyline
+PLATE_SEGMENTS = np.array([[0, 1], [1, 2]])
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_flat_polyline_tool_is_the_plane(cell):
+    """A straight two-segment polyline under the pressed square: force = reaction to 1e-8, = |P_yy| to 0.1 %."""
+    problem = _pressed_square(cell=cell)
+    tool = ToolContact.from_arrays(["bottom"], PLATE, PLATE_SEGMENTS, dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[tool])
+    iterates = _watch(solver, tool)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    reaction = ReactionForce(problem, "top")()
+    assert tool.force().shape == (2,) and tool.force()[1] == pytest.approx(-reaction[1], rel=1e-8)
+    bottom = tool.surface.positions(problem.u.x.array)[:, 1]
+    assert tool.force()[1] == pytest.approx(-_plane_strain_pyy(0.8 - bottom.mean()), rel=1e-3)
+    assert min(iterates) > 0.0 and not tool.intersecting()
+
+
+def test_polyline_tool_pushed_into_a_resting_square_equals_the_square_pushed_onto_it():
+    """The tool moved 0.1 up into the square resting on it (top held) = the top pushed 0.1 down onto the fixed tool:
+    the predictor carries the bottom nodes the tool would overrun (2D ray casting against the segments)."""
+    moved = _pressed_square(delta=0.0)
+    tool = ToolContact.from_arrays(["bottom"], PLATE, PLATE_SEGMENTS, dhat=DHAT, motion=(0.0, 0.1)).bind(moved)
+    solver = hf.NewtonSolver(moved, TIGHT, external_energies=[tool])
+    iterates = _watch(solver, tool)
+    records = hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.5, max_increment=0.5))
+    assert sum(r.rejected for r in records) == 0
+    fixed = _pressed_square(delta=0.1)
+    still = ToolContact.from_arrays(["bottom"], PLATE, PLATE_SEGMENTS, dhat=DHAT).bind(fixed)
+    hf.solve_quasistatic(hf.NewtonSolver(fixed, TIGHT, external_energies=[still]),
+                         stepping=hf.LoadStepping(initial_increment=0.5, max_increment=0.5))
+    assert tool.force()[1] == pytest.approx(still.force()[1], rel=1e-6)
+    assert min(iterates) > 0.0 and not tool.intersecting()
+
+
+def test_ray_hits_segments():
+    """A ray straight down onto a segment: the distance and the segment; a ray beside it: none."""
+    segment = np.array([[[0.0, 0.0], [1.0, 0.0]]])
+    distance, index = ray_hits(np.array([[0.2, 0.5], [1.5, 0.5]]), np.array([0.0, -1.0]), segment)
+    assert distance[0] == pytest.approx(0.5) and index[0] == 0
+    assert np.isinf(distance[1]) and index[1] == -1
+
+
+# -- refusals ---------------------------------------------------------------------------------------------------------
+
+
+def test_unsupported_input_is_refused_in_one_line():
+    """A 1D mesh, a 3D tool on a 2D mesh, a 2D tool's bad entries: one-line ParameterErrors."""
+    from types import SimpleNamespace
+
+    from hyperfem.contact.surface import contact_surface
+
+    comm = MPI.COMM_WORLD
+    line = hf.Domain.from_locators(dmesh.create_unit_interval(comm, 4), {"end": lambda x: np.isclose(x[0], 1.0)})
+    with pytest.raises(ParameterError, match=r"^SurfaceContact: mesh contact needs a 3D mesh of tetrahedra or "
+                       r"hexahedra or a 2D mesh of triangles or quadrilaterals, got 1D interval cells$"):
+        contact_surface(SimpleNamespace(domain=line), ["end"], "SurfaceContact")
+    problem = _pressed_square(delta=0.0)
+    triangle = np.array([[-1.0, -1.0, -0.1], [3.0, -1.0, -0.1], [0.0, 3.0, -0.1]])
+    with pytest.raises(ParameterError, match=r"^ToolContact on \['bottom'\]: a 3D tool on a 2D mesh; give a "
+                       r"polyline, points \(k, 2\) and segments \(s, 2\) \(ToolContact.from_arrays\)$"):
+        ToolContact.from_arrays(["bottom"], triangle, np.array([[0, 1, 2]])).bind(problem)
+    with pytest.raises(ParameterError, match=r"segments of a 2D tool must be \(s, 2\) indices into points$"):
+        ToolContact.from_arrays(["bottom"], PLATE, np.array([[0, 1, 2]]))
+    with pytest.raises(ParameterError, match=r"motion must have 2 components, got 3$"):
+        ToolContact.from_arrays(["bottom"], PLATE, PLATE_SEGMENTS, motion=(0.0, 0.0, 1.0))
+    from hyperfem.loading import RigidRotation
+
+    with pytest.raises(ParameterError, match=r"a rotation needs a 3D obstacle, got 2 components$"):
+        ToolContact.from_arrays(["bottom"], PLATE, PLATE_SEGMENTS,
+                                rotation=RigidRotation((0.0, 0.0, 1.0), lambda t: t, (0.0, 0.0, 0.0)))
+    touching = PLATE + np.array([0.0, DHAT / 2])
+    with pytest.raises(ParameterError, match=r"start in contact|intersect at"):
+        ToolContact.from_arrays(["bottom"], touching, PLATE_SEGMENTS, dhat=DHAT).bind(problem)
