@@ -118,39 +118,18 @@ def test_p2_surfaces_balance_the_reaction():
     assert min(iterates) > 0.0 and not contact.intersecting()
 
 
-def _hexahedral_blocks(comm, n_lower: int, n_upper: int) -> hf.Domain:
-    """The patch test's two cubes as hexahedra, ``n^3`` boxes each (one mesh, all cells read on rank 0)."""
-    import basix.ufl
-    import ufl
-
-    parts = []
-    for z0, n in ((-1.0, n_lower), (GAP, n_upper)):
-        corners = [np.array([0.0, 0.0, z0]), np.array([1.0, 1.0, z0 + 1.0])]
-        block = dmesh.create_box(MPI.COMM_SELF, corners, [n, n, n], cell_type=dmesh.CellType.hexahedron)
-        parts.append((block.geometry.x.copy(), np.asarray(block.geometry.dofmaps[0]).copy()))
-    if comm.rank == 0:
-        x = np.vstack([parts[0][0], parts[1][0]])
-        cells = np.vstack([parts[0][1], parts[1][1] + len(parts[0][0])]).astype(np.int64)
-    else:
-        x, cells = np.zeros((0, 3)), np.zeros((0, 8), dtype=np.int64)
-    element = ufl.Mesh(basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,)))
-    mesh = dmesh.create_mesh(comm, cells, element, x)
-    at = {"lower_bottom": (2, -1.0), "lower_top": (2, 0.0), "upper_bottom": (2, GAP), "upper_top": (2, 1.0 + GAP),
-          "x0": (0, 0.0), "y0": (1, 0.0)}
-    groups = {name: (lambda x, k=k, v=v: np.isclose(x[k], v)) for name, (k, v) in at.items()}
-    return hf.Domain.from_locators(mesh, groups, source="two hexahedral cubes")
-
-
 def test_hexahedral_blocks_transmit_the_uniaxial_stress():
-    """The patch test on Q1 hexahedra (3^3 boxes below, 2^3 above: non-matching faces, each split into two
-    triangles): force through the interface = top reaction to 1e-8, = |P_zz| to 0.1 % (measured 5e-5).
+    """The patch test on Q1 hexahedra (``stacked_blocks_mesh(cell="hexahedron")``: 3^3 boxes below, 2^3 above,
+    non-matching faces, each split into two triangles): force through the interface = top reaction to 1e-8
+    (measured 2e-13), = |P_zz| to 0.1 % (measured 5.7e-5; 1 and 2 ranks alike to 1e-14).
 
     The faces do not stay flat here (measured: 2.4 d-hat, 2.4e-3 on a push of 0.2, both faces alike): the nodal
     barrier carries the upper face's consistent nodal forces (1, 2, 1; 2, 4, 2; 1, 2, 1)/16 as point loads onto
     the finer face, which a uniform stress state cannot take: the node-to-surface patch-test error, which the
     P1 tetrahedral meshes of the first test happen to keep below 0.3 d-hat. Only a bound on it is asserted."""
     delta = 0.2
-    problem, contact, iterates = _stacked(delta=delta, domain=_hexahedral_blocks(MPI.COMM_WORLD, 3, 2))
+    domain = hf.mesh.stacked_blocks_mesh(1 / 3, 1 / 2, GAP, cell="hexahedron")
+    problem, contact, iterates = _stacked(delta=delta, domain=domain)
     reaction = ReactionForce(problem, "upper_top")()
     assert contact.force(group=0)[2] == pytest.approx(reaction[2], rel=1e-8) and reaction[2] < 0.0
     surface = contact.surface
@@ -161,13 +140,16 @@ def test_hexahedral_blocks_transmit_the_uniaxial_stress():
     assert -reaction[2] == pytest.approx(-_uniaxial_pzz(stretch), rel=1e-3)
     assert lower.std() < 5 * DHAT and upper.std() < 5 * DHAT
     assert 0.0 < contact.min_distance() < DHAT and min(iterates) > 0.0 and not contact.intersecting()
+    with pytest.raises(ParameterError, match="cell must be one of tetrahedron, hexahedron, got 'prism'"):
+        hf.mesh.stacked_blocks_mesh(cell="prism")
 
 
 def test_q2_hexahedral_surfaces_balance_the_reaction():
     """Q2 hexahedra: every face node (corners, edge midpoints, centre) is a vertex of the collision mesh, eight
     triangles a face; equilibrium holds and nothing intersects. The force is 5.9 % below |P_zz| (measured): the
     nodal barrier on quadratic faces does not carry a uniform pressure (the P2 tetrahedra: about 3 %)."""
-    problem, contact, iterates = _stacked(degree=2, delta=0.2, domain=_hexahedral_blocks(MPI.COMM_WORLD, 2, 1))
+    domain = hf.mesh.stacked_blocks_mesh(1 / 2, 1.0, GAP, cell="hexahedron")
+    problem, contact, iterates = _stacked(degree=2, delta=0.2, domain=domain)
     reaction = ReactionForce(problem, "upper_top")()
     assert contact.force(group=0)[2] == pytest.approx(reaction[2], rel=1e-8) and reaction[2] < 0.0
     assert len(contact.surface.faces) == 8 * (4 + 1)
