@@ -274,6 +274,30 @@ def test_polyline_tool_pushed_into_a_resting_square_equals_the_square_pushed_ont
     assert min(iterates) > 0.0 and not tool.intersecting()
 
 
+def test_square_dragged_on_a_rough_polyline_slides_at_mu_n():
+    """Friction in 2D (ipctk's tangential collisions of edge-vertex pairs): the square pressed 0.05 on the polyline
+    (mu = 0.3), then its top dragged 0.2 along x in steps of 0.125: the bottom slides (>> epsilon) and the friction
+    force is mu N to 0.5 % (measured 8e-6; 1.6 % with steps of 0.25, where the first drag step still sticks)."""
+    from hyperfem.loading import Ramp
+
+    mesh = dmesh.create_unit_square(MPI.COMM_WORLD, 3, 3)
+    groups = {"bottom": lambda x: np.isclose(x[1], 0.0), "top": lambda x: np.isclose(x[1], 1.0)}
+    domain = hf.Domain.from_locators(mesh, groups, source="unit square")
+    bcs = [hf.PrescribedDisplacement("top", [-0.05], components=[1], profile=Ramp(1.0)),
+           hf.PrescribedDisplacement("top", [0.2], components=[0], profile=Ramp(2.0, t0=1.0))]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+    tool = ToolContact.from_arrays(["bottom"], PLATE, PLATE_SEGMENTS, dhat=DHAT, friction=0.3).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[tool], check_rigid_motion=False)
+    stepping = hf.LoadStepping(initial_increment=0.125, max_increment=0.125)
+    hf.solve_quasistatic(solver, 1.0, stepping=stepping)
+    before = tool.surface.positions(problem.u.x.array)[:, 0]
+    hf.solve_quasistatic(solver, 2.0, stepping=stepping)
+    slip = float(np.abs(tool.surface.positions(problem.u.x.array)[:, 0] - before).max())
+    assert slip > 100 * tool.friction_epsilon
+    assert -tool.friction_force()[0] == pytest.approx(0.3 * tool.force()[1], rel=5e-3)
+    assert tool.moment().shape == (3,) and tool.moment()[:2].tolist() == [0.0, 0.0]
+
+
 def test_ray_hits_segments():
     """A ray straight down onto a segment: the distance and the segment; a ray beside it: none."""
     segment = np.array([[[0.0, 0.0], [1.0, 0.0]]])
@@ -313,3 +337,114 @@ def test_unsupported_input_is_refused_in_one_line():
     touching = PLATE + np.array([0.0, DHAT / 2])
     with pytest.raises(ParameterError, match=r"start in contact|intersect at"):
         ToolContact.from_arrays(["bottom"], touching, PLATE_SEGMENTS, dhat=DHAT).bind(problem)
+
+
+# -- the case file --------------------------------------------------------------------------------------------------
+
+PAIR_2D = """name = "two_squares"
+[mesh]
+file = "squares.msh"                 # lower below y = 0, upper above y = 5e-4 (non-matching edges)
+[[material]]
+law = "neo_hookean"
+E = 1.0
+nu = 0.3
+[[bc]]
+type = "displacement"
+boundary = "x0"
+value = [0.0]
+components = ["x"]
+[[bc]]
+type = "displacement"
+boundary = "lower_bottom"
+value = [0.0]
+components = ["y"]
+[[bc]]
+type = "displacement"
+boundary = "upper_top"
+value = [-0.2]
+components = ["y"]
+[[contact]]
+type = "pair"
+boundaries = ["lower_top", "upper_bottom"]
+dhat = 1e-3
+[stepping]
+increment = 0.25
+max_increment = 0.25
+[solver]
+rtol = 1e-10
+atol = 1e-12
+[output]
+reactions = ["upper_top"]
+fields = []
+checkpoint = false
+progress = false
+"""
+
+
+def _write_squares_msh(path) -> None:
+    """Two unit squares (gmsh, triangles of sizes 0.25 and 0.34): the groups of :func:`_squares` plus the surfaces."""
+    import gmsh
+
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("squares")
+        lower = gmsh.model.occ.addRectangle(0.0, -1.0, 0.0, 1.0, 1.0)
+        upper = gmsh.model.occ.addRectangle(0.0, GAP, 0.0, 1.0, 1.0)
+        gmsh.model.occ.synchronize()
+        edges: dict[str, list[int]] = {k: [] for k in ("lower_bottom", "lower_top", "upper_bottom", "upper_top", "x0")}
+        bodies = ((lower, "lower", (-1.0, 0.0), 0.25), (upper, "upper", (GAP, 1 + GAP), 0.34))
+        for surface, prefix, (y0, y1), h in bodies:
+            for _, tag in gmsh.model.getBoundary([(2, surface)], oriented=False):
+                x, y, _ = gmsh.model.occ.getCenterOfMass(1, tag)
+                if abs(y - y1) < 1e-9:
+                    edges[f"{prefix}_top"].append(tag)
+                elif abs(y - y0) < 1e-9:
+                    edges[f"{prefix}_bottom"].append(tag)
+                elif abs(x) < 1e-9:
+                    edges["x0"].append(tag)
+            gmsh.model.mesh.setSize(gmsh.model.getBoundary([(2, surface)], recursive=True), h)
+        gmsh.model.addPhysicalGroup(2, [lower], 1, name="lower")
+        gmsh.model.addPhysicalGroup(2, [upper], 2, name="upper")
+        for k, (name, tags) in enumerate(edges.items()):
+            gmsh.model.addPhysicalGroup(1, tags, 10 + k, name=name)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+
+
+def test_pair_contact_case_on_a_2d_mesh(shared_tmp):
+    """``type = "pair"`` on a 2D gmsh mesh of triangles: the force on lower_top = the top reaction (1e-8) at every
+    step and the plane-strain P_yy to 0.1 %; a tool contact on a 2D mesh is refused in one line."""
+    from hyperfem.app import build, load_case
+    from hyperfem.app.casefile import CaseFileError
+
+    path = shared_tmp / "two_squares.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        _write_squares_msh(shared_tmp / "squares.msh")
+        path.write_text(PAIR_2D)
+    MPI.COMM_WORLD.Barrier()
+    built = build(load_case(path, output=shared_tmp / "out"))
+    summary = built.simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and summary["steps"] == 4
+    for row in rows[1:]:
+        assert row["contact_force"][1] == pytest.approx(row["reaction_upper_top_Fy"], rel=1e-8)
+    barrier = built.variables["contact"]
+    surface = barrier.surface
+    x = surface.positions(built.variables["problem"].u.x.array)
+    stretch = (2.0 + GAP - 0.2 - (x[surface.group == 1, 1].mean() - x[surface.group == 0, 1].mean())) / 2.0
+    assert -rows[-1]["reaction_upper_top_Fy"] == pytest.approx(-_plane_strain_pyy(stretch), rel=1e-3)
+    tool = PAIR_2D.replace('type = "pair"', 'type = "tool"\nfile = "plate.stl"')
+    if MPI.COMM_WORLD.rank == 0:
+        import meshio
+
+        plate = np.array([[-1.0, -2.0, -1.0], [3.0, -2.0, -1.0], [0.0, -2.0, 3.0]])
+        meshio.write_points_cells(shared_tmp / "plate.stl", plate, [("triangle", np.array([[0, 1, 2]]))])
+        path.write_text(tool)
+    MPI.COMM_WORLD.Barrier()
+    with pytest.raises(CaseFileError, match=r"contact\[0\]: a tool contact needs a 3D mesh of tetrahedra or "
+                       r"hexahedra \(in 2D: self and pair contacts\)"):
+        build(load_case(path, output=shared_tmp / "out"))

@@ -86,7 +86,8 @@ REPRESENTATIONS = ("DG0", "P1", "quadrature")
 BC_TYPES = ("clamp", "displacement", "rotation")
 CONTACT_TYPES = ("plane", "sphere", "cylinder", "self", "pair", "tool", "tie")
 MESH_CONTACT_TYPES = ("self", "pair", "tool", "tie")
-"""Contacts of boundary surfaces (triangles and edges) rather than of boundary nodes: ``boundaries``, 3D only."""
+"""Contacts of boundary surfaces (triangles and edges) rather than of boundary nodes: ``boundaries``; 3D, and
+self and pair also on 2D meshes of triangles or quadrilaterals (boundary segments)."""
 LOAD_TYPES = ("dead_traction", "follower_traction", "pressure", "body_force")
 PROFILE_TYPES = ("linear", "steady", "ramp", "table")
 AXES = {"x": 0, "y": 1, "z": 2}
