@@ -2,7 +2,6 @@
 
 import gc
 import os
-import weakref
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -45,28 +44,27 @@ def pytest_collection_finish(session):
 # communicators (each IndexMap has its own) can no longer be cleaned up, and MPICH has 2048
 # communicators per process: a 2-rank run of the whole suite ran out of them near its end
 # (MPI_Abort in an IndexMap constructor, the job killed without a message). So every mesh
-# and function space a test creates is kept until its teardown, which cleans up the garbage
-# of each of their communicators (they are created collectively: in the same order on every
-# rank). Those that outlive their test (module caches, fixtures) are cleaned up after every
-# later test too, as long as they live.
+# and function space a test creates on several ranks is kept until its teardown, which
+# cleans up the garbage of each of their communicators. They are created collectively, so
+# the list is the same on every rank, in the same order; only strong references are used
+# (which objects a weak reference still finds could differ between ranks, and one rank
+# would wait in a cleanup the other never enters).
 _KEPT: list[dolfinx.mesh.Mesh | dolfinx.fem.FunctionSpace] = []
-_LIVING: list[weakref.ref] = []
 
 
-def _keeping(cls):
+def _keeping(cls, comm_of):
     init = cls.__init__
 
     def recorded_init(self, *args, **kwargs):
         init(self, *args, **kwargs)
-        if MPI.COMM_WORLD.size > 1:
+        if comm_of(self).size > 1:
             _KEPT.append(self)
-            _LIVING.append(weakref.ref(self))
 
     cls.__init__ = recorded_init
 
 
-_keeping(dolfinx.mesh.Mesh)
-_keeping(dolfinx.fem.FunctionSpace)
+_keeping(dolfinx.mesh.Mesh, lambda mesh: mesh.comm)
+_keeping(dolfinx.fem.FunctionSpace, lambda space: space.mesh.comm)
 
 
 def _communicators(obj) -> list[MPI.Comm]:
@@ -86,20 +84,16 @@ def _communicators(obj) -> list[MPI.Comm]:
 def _mpi_teardown():
     yield
     gc.collect()
-    seen = set()
     if MPI.COMM_WORLD.size > 1:  # matrices a test made on the world communicator itself
         PETSc.garbage_cleanup(MPI.COMM_WORLD)
-    for ref in _LIVING:
-        obj = ref()
-        if obj is None:
-            continue
+    seen = set()
+    for obj in _KEPT:
         for comm in _communicators(obj):
             if comm.py2f() not in seen:
                 seen.add(comm.py2f())
                 PETSc.garbage_cleanup(comm)
     _KEPT.clear()
     gc.collect()
-    _LIVING[:] = [ref for ref in _LIVING if ref() is not None]
     MPI.COMM_WORLD.Barrier()
 
 
