@@ -5,8 +5,9 @@ keeps communicators (MUMPS: five on 2 ranks), and MPICH has 2048 per process. Be
 fix a continuation leaked about 130 of them in one short run (the MUMPS factor of every
 inertia count), and a 2-rank run of this suite ran out of them near its end. Counted here
 by duplicating the world communicator until MPI refuses (MPICH: about 2046 in a fresh
-process). Open MPI has no such small limit: there the probe stops at its cap and the
-comparison holds trivially.
+process). Open MPI has no such small limit (there hyperfem leaves the garbage alone,
+hyperfem.solver.garbage.NEEDED, and the probe stops at its cap: the comparison holds
+trivially).
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-__all__ = ["release_garbage", "state_communicators"]
+__all__ = ["NEEDED", "release_garbage", "state_communicators"]
 
 
 def state_communicators(u: fem.Function) -> list[MPI.Comm]:
@@ -37,8 +37,17 @@ def state_communicators(u: fem.Function) -> list[MPI.Comm]:
     return [space.mesh.comm, space.dofmap.index_map.comm]
 
 
+NEEDED = MPI.get_vendor()[0] != "Open MPI"
+"""Whether :func:`release_garbage` acts. Open MPI has no small limit of communicators, and on Debian's Open
+MPI (PETSc 3.24) a 2-rank ``PETSc.garbage_cleanup`` after a case-file arc-length run waited forever (rank 0
+held a queued KSP and Mat; not understood): there the garbage waits as it did before, costing memory only."""
+
+
 def release_garbage(comms: Iterable[MPI.Comm]) -> None:
-    """Destroy the PETSc objects Python dropped on each of ``comms`` (collective on each; a no-op on one rank)."""
+    """Destroy the PETSc objects Python dropped on each of ``comms`` (collective on each; a no-op on one rank
+    and under Open MPI, :data:`NEEDED`)."""
+    if not NEEDED:
+        return
     for comm in comms:
         if comm.size > 1:
             PETSc.garbage_cleanup(comm)  # type: ignore[arg-type]  # petsc4py accepts an mpi4py communicator
