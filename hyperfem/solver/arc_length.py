@@ -112,8 +112,8 @@ vector), its PSD Hessian in the tangent, its collision-free step filter
 friction is lagged per accepted step. The obstacles must hold still: the
 load factor goes up and down, and a moving obstacle would sweep into the
 body along with it (a motion or rotation is refused in one line). Measured:
-a block pressed on a plane by a pressure ramp (``tests/test_arc_length.py``)
-ends where the load-controlled ramp does.
+a block pushed onto a plane by a prescribed displacement of its top
+(``tests/test_arc_length.py``) ends where the load-controlled ramp does (3e-16).
 """
 
 from __future__ import annotations
