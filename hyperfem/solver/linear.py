@@ -170,7 +170,14 @@ Measured (``benchmarks/scale.py --variants hyperfem-iterative hyperfem-direct``,
 bend, P1, this 2-core machine, serial): CG + GAMG vs MUMPS 0.42 / 0.46 s at
 4.1k unknowns, 0.83 / 1.01 s at 7.6k, 1.32 / 2.33 s at 12.7k, 2.8-3.9 / 7.7 s
 at 28.6k. Below 10^4 LU is as fast and more robust (indefinite tangents do
-not stop it), so small problems keep it."""
+not stop it), so small problems keep it.
+
+On 2 ranks LU is relatively slower (MUMPS's parallel set-up), but the
+times are small: 0.29–0.31 / 0.17–0.18 s at 4.1k, 0.61–0.62 / 0.29 s at
+7.6k, 1.25–1.38 / 0.45–0.47 s at 12.7k, 2.28–2.37 / 0.70–0.71 s at 19.6k
+(MUMPS / CG + GAMG, quiet machine, ``results/issue20_thresholds_2ranks_s31.jsonl``).
+The threshold does not depend on the number of ranks, so a problem takes the
+same path on any number of them."""
 
 HIGH_ORDER_DIRECT_THRESHOLDS: dict[int, int] = {3: 40_000, 4: 150_000}
 """Unknowns from which a displacement problem of degree 3, and of degree 4 and higher, is solved iteratively.
@@ -214,7 +221,14 @@ MIXED_DIRECT_THRESHOLD = 40_000
 Measured (``benchmarks/scale.py --formulation mixed``, nearly incompressible
 bend, P2/P1/P1, this 2-core machine, serial; ``results/scale_mixed.jsonl``):
 field split vs MUMPS 19.0 / 15.3 s and 0.36 / 0.59 GB at 31k unknowns,
-85 / 146 s and 0.93 / 2.34 GB at 100k. The time ratio crosses 1 near 44k."""
+85 / 146 s and 0.93 / 2.34 GB at 100k. The time ratio crosses 1 near 44k.
+
+On 2 ranks the field split is faster from the smallest size measured:
+2.46 / 2.69–3.23 s at 14k, 3.63–3.99 / 4.79–5.30 s at 21k, 5.83–6.29 /
+7.92–8.62 s at 31k (quiet machine, ``results/issue20_thresholds_2ranks_s31.jsonl``
+and ``results/issue20_mixed_sweep_s31.jsonl``). The threshold is kept for
+any number of ranks: the same path everywhere, and the LU's robustness on
+hard steps below it."""
 
 _counter = itertools.count()
 
