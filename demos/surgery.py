@@ -33,7 +33,10 @@
 # it (``--friction 0`` for a frictionless probe, which only ploughs).
 #
 # Run with `python demos/surgery.py` or `mpiexec -n 2 python demos/surgery.py`
-# (needs the contact extra: `pip install 'hyperfem[contact]'`).
+# (needs the contact extra: `pip install 'hyperfem[contact]'`). The default
+# mesh (`--n 6`) takes seconds; `--n 30` (90.8k unknowns) took 14 min 51 s on
+# 2 ranks of a quiet 2-core machine, in 19 steps, most of it the Newton
+# iterations of the drag (`benchmarks/contact_drag_newton.py`).
 
 # %%
 import os
