@@ -28,7 +28,7 @@ ipctk = pytest.importorskip("ipctk")
 
 import hyperfem as hf  # noqa: E402
 from dolfinx import mesh as dmesh  # noqa: E402
-from hyperfem.contact import SurfaceContact, ToolContact  # noqa: E402
+from hyperfem.contact import SurfaceContact, TieContact, ToolContact  # noqa: E402
 from hyperfem.contact.mesh_barrier import ray_hits  # noqa: E402
 from hyperfem.contact.surface import global_dofs  # noqa: E402
 from hyperfem.errors import ParameterError  # noqa: E402
@@ -298,6 +298,64 @@ def test_square_dragged_on_a_rough_polyline_slides_at_mu_n():
     assert tool.moment().shape == (3,) and tool.moment()[:2].tolist() == [0.0, 0.0]
 
 
+def _tied_squares(comm=MPI.COMM_WORLD, delta=0.2, cell="triangle", degree=1):
+    """The two squares (non-matching: 4 x 4 below, 3 x 3 above, 5e-4 apart) glued and pulled apart by ``delta``."""
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("lower_bottom", [0.0], components=[1]),
+        hf.PrescribedDisplacement("upper_top", [delta], components=[1]),
+    ]
+    domain = _squares(comm, 4, 3, cell=cell)
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs, degree=degree)
+    tie = TieContact("upper_bottom", "lower_top").bind(problem)
+    solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-10, "snes_atol": 1e-7}, external_energies=[tie])
+    assert all(step.solve.converged for step in hf.solve_quasistatic(solver))
+    return problem, tie
+
+
+@pytest.mark.parametrize(("cell", "degree"), [("triangle", 1), ("quadrilateral", 1), ("triangle", 2)])
+def test_tie_glues_non_matching_squares_in_plane_strain_uniaxial_stress(cell, degree):
+    """A 2D tie (nodes on the other group's segments) holds the homogeneous state: with the reference gap kept,
+    each square stretches by 1 + delta/2, and the pull is the closed-form plane-strain P_yy (P1, Q1: measured
+    4e-9 off). P2 passes the patch test only to 2.3e-4 (measured): the tie's forces live on the linear
+    sub-segments and cannot reproduce the (1, 4, 1)/6 consistent loads of a uniform traction on non-matching
+    P2 edges, as for P2 contact."""
+    delta = 0.2
+    problem, tie = _tied_squares(delta=delta, cell=cell, degree=degree)
+    reaction = ReactionForce(problem, "upper_top")()
+    assert reaction[1] == pytest.approx(_plane_strain_pyy(1.0 + delta / 2), rel=1e-6 if degree == 1 else 1e-3)
+    # The pull balances the tie (y; the x reaction of upper_top includes its corner's on the x0 roller)
+    assert tie.force()[1] == pytest.approx(-reaction[1], rel=1e-6)
+    assert tie.max_gap() < 1e-6 * delta and np.allclose(tie.gaps, GAP)
+    assert tie.dim == 2 and len(tie.record()["tie_force"]) == 2
+
+
+def test_tie_2d_one_rank_equals_two_ranks():
+    """The glued squares on 2 ranks equal 1 rank to 1e-10 in the reaction."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+
+    def pull(c):
+        problem, _ = _tied_squares(c)
+        return float(ReactionForce(problem, "upper_top")()[1])
+
+    one = comm.bcast(pull(MPI.COMM_SELF) if comm.rank == 0 else None, root=0)
+    assert pull(comm) == pytest.approx(one, rel=1e-10)
+
+
+def test_closest_on_segments():
+    """The closest point of a point on a set of segments: inside one, at an end, the nearer of two."""
+    from hyperfem.contact.tie import closest_on_segments
+
+    segments = np.array([[[0.0, 0.0], [1.0, 0.0]], [[1.0, 0.0], [1.0, 1.0]]])
+    points = np.array([[0.25, 0.5], [2.0, 2.0], [0.9, 0.3], [-1.0, 0.0]])
+    index, weights, distance = closest_on_segments(points, segments)
+    np.testing.assert_array_equal(index, [0, 1, 1, 0])
+    np.testing.assert_allclose(weights, [[0.75, 0.25], [0.0, 1.0], [0.7, 0.3], [1.0, 0.0]])
+    np.testing.assert_allclose(distance, [0.5, np.sqrt(2.0), 0.1, 1.0])
+
+
 def test_ray_hits_segments():
     """A ray straight down onto a segment: the distance and the segment; a ray beside it: none."""
     segment = np.array([[[0.0, 0.0], [1.0, 0.0]]])
@@ -381,6 +439,27 @@ progress = false
 """
 
 
+def test_tie_case_on_a_2d_mesh(shared_tmp):
+    """``type = "tie"`` on the 2D gmsh squares (5e-4 apart, non-matching): pulled apart, the force on the first
+    group = -the top reaction (1e-6) at every step and the plane-strain P_yy of a stretch 1 + 0.2/2 (1e-6)."""
+    from hyperfem.app import build, load_case
+
+    path = shared_tmp / "tied_squares.toml"
+    tie = PAIR_2D.replace('type = "pair"', 'type = "tie"').replace("dhat = 1e-3\n", "")
+    tie = tie.replace("value = [-0.2]", "value = [0.2]").replace("atol = 1e-12", "atol = 1e-7")
+    if MPI.COMM_WORLD.rank == 0:
+        _write_squares_msh(shared_tmp / "squares.msh")
+        path.write_text(tie)
+    MPI.COMM_WORLD.Barrier()
+    summary = build(load_case(path, output=shared_tmp / "out")).simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and summary["steps"] == 4
+    for row in rows[1:]:
+        assert row["contact_force"][1] == pytest.approx(row["reaction_upper_top_Fy"], rel=1e-6)
+    assert rows[-1]["reaction_upper_top_Fy"] == pytest.approx(_plane_strain_pyy(1.1), rel=1e-6)
+    assert rows[-1]["contact_max_gap"] < 1e-6
+
+
 def _write_squares_msh(path) -> None:
     """Two unit squares (gmsh, triangles of sizes 0.25 and 0.34): the groups of :func:`_squares` plus the surfaces."""
     import gmsh
@@ -446,5 +525,5 @@ def test_pair_contact_case_on_a_2d_mesh(shared_tmp):
         path.write_text(tool)
     MPI.COMM_WORLD.Barrier()
     with pytest.raises(CaseFileError, match=r"contact\[0\]: a tool contact needs a 3D mesh of tetrahedra or "
-                       r"hexahedra \(in 2D: self and pair contacts\)"):
+                       r"hexahedra \(in 2D: self, pair and tie contacts\)"):
         build(load_case(path, output=shared_tmp / "out"))

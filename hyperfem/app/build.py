@@ -131,9 +131,9 @@ def check_dimensions(case: Case, domain: Domain) -> None:
         elif isinstance(load.value, tuple) and len(load.value) != gdim:
             fail(f"{load.key}.value", f"{len(load.value)} components")
     for contact in case.contacts:
-        if contact.boundaries is not None and gdim != 3 and not (gdim == 2 and contact.type in ("self", "pair")):
+        if contact.boundaries is not None and gdim != 3 and not (gdim == 2 and contact.type in ("self", "pair", "tie")):
             fail(contact.key, f"a {contact.type} contact needs a 3D mesh of tetrahedra or hexahedra"
-                 + (" (in 2D: self and pair contacts)" if gdim == 2 else ""))
+                 + (" (in 2D: self, pair and tie contacts)" if gdim == 2 else ""))
         name, where = ("center", contact.center) if contact.type == "sphere" else ("point", contact.point)
         if where is not None and len(where) != gdim:
             fail(f"{contact.key}.{name}", f"{len(where)} components")

@@ -542,8 +542,8 @@ CONTACTS = {
     "tie": {
         "boundaries": Key("strings", required=True, example=("upper_bottom", "lower_top"),
                           help="the two facet groups glued together (non-matching meshes allowed; they must face "
-                          "each other): the nodes of each are tied to the triangles of the other (two-pass "
-                          "penalty); the force output is the force on the first"),
+                          "each other): the nodes of each are tied to the triangles (in 2D: segments) of the other "
+                          "(two-pass penalty); the force output is the force on the first"),
         "stiffness": Key("number", above=0.0, example=1.0e8,
                          help="the tie's penalty k; default 1e8 times the mean diagonal of the elastic tangent at "
                          "the glued nodes (for direct solvers; lower it for iterative ones)"),

@@ -24,6 +24,16 @@ gives the uniaxial stress 0.22 % off with a wavy interface, two passes the
 closed form to 6e-9. A P2 group is split into four linear triangles on its
 nodes, as for contact.
 
+**2D** (triangles and quadrilaterals, degree 1 and 2): the groups are edges,
+each node is tied to the closest point of the other group's segments
+(:func:`closest_on_segments`; a P2 edge is two segments on its three nodes).
+The patch test (``tests/test_contact_2d.py``: two non-matching squares 5e-4
+apart, glued and pulled 20 %) gives the closed-form plane-strain stress to
+4e-9 on P1 and Q1. On P2 it is 2.3e-4 off: the tie's forces act through the
+linear sub-segments, which cannot reproduce the consistent loads
+(1, 4, 1)/6 of a uniform traction on non-matching P2 edges (the P2
+surfaces of contact have the same limit).
+
 The penalty :math:`k` = :data:`TIE_FACTOR` times the mean tangent diagonal at
 the tied nodes by default: the tie then yields by about :math:`10^{-8}` of
 the displacement the elements alone would take, so a conforming interface
@@ -73,7 +83,7 @@ from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_name, check_positive
 
-__all__ = ["TIE_FACTOR", "TieBarrier", "TieContact", "closest_on_triangles"]
+__all__ = ["TIE_FACTOR", "TieBarrier", "TieContact", "closest_on_segments", "closest_on_triangles"]
 
 TIE_FACTOR = 1e8
 r"""The tie's penalty by default: this factor times the mean tangent diagonal at the tied nodes."""
@@ -120,6 +130,33 @@ def closest_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.
         index[start : start + chunk] = k
         weights[start : start + chunk] = best_w[rows, k]
         distance[start : start + chunk] = best_d[rows, k]
+    return index, weights, distance
+
+
+def closest_on_segments(points: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closest segment of each point and the weights of the closest point on it (2D ties).
+
+    Args:
+        points: Shape ``(m, 2)``.
+        segments: End positions, shape ``(f, 2, 2)``.
+
+    Returns:
+        The segment index ``(m,)``, the weights ``(m, 2)`` and the distance ``(m,)``.
+    """
+    a, b = segments[:, 0], segments[:, 1]
+    index = np.zeros(len(points), dtype=np.int64)
+    weights = np.zeros((len(points), 2))
+    distance = np.full(len(points), np.inf)
+    chunk = max(1, 1_000_000 // max(1, len(segments)))
+    for start in range(0, len(points), chunk):
+        p = points[start : start + chunk][:, None, :]
+        t = _segment_parameter(p, a, b)
+        d = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1)
+        k = d.argmin(axis=1)
+        rows = np.arange(len(k))
+        index[start : start + chunk] = k
+        weights[start : start + chunk] = np.column_stack([1.0 - t[rows, k], t[rows, k]])
+        distance[start : start + chunk] = d[rows, k]
     return index, weights, distance
 
 
@@ -221,16 +258,17 @@ class TieBarrier:
         passes = [self._tie_rows(surface, 0, 1, tolerance), self._tie_rows(surface, 1, 0, tolerance)]
         self.gaps = np.concatenate([gaps for _, gaps in passes])
         B = sp.vstack([rows for rows, _ in passes]).tocsr()
-        self._B = sp.kron(B, sp.identity(3), format="csr")
+        d = self.dim = X.shape[1]
+        self._B = sp.kron(B, sp.identity(d), format="csr")
         self._global = surface.global_dofs.ravel()
         self._fixed = surface.constrained.ravel()
-        own = np.zeros(3 * surface.size, dtype=bool)
-        own[(3 * surface.rows[:, None] + np.arange(3)).ravel()] = True
+        own = np.zeros(d * surface.size, dtype=bool)
+        own[(d * surface.rows[:, None] + np.arange(d)).ravel()] = True
         self._own = own
         if contact.stiffness is not None:
             self.stiffness = float(contact.stiffness)
         else:
-            self.stiffness = TIE_FACTOR * mean_tangent_diagonal(problem, surface.dofs, np.full(3, 1.0 / 3.0))
+            self.stiffness = TIE_FACTOR * mean_tangent_diagonal(problem, surface.dofs, np.full(d, 1.0 / d))
         H = (self.stiffness * (self._B.T @ self._B)).tocoo()
         keep = own[H.row] & ~self._fixed[H.row] & ~self._fixed[H.col] & (H.data != 0.0)
         self._hessian = (self._global[H.row[keep]], self._global[H.col[keep]], np.asarray(H.data[keep], dtype=float))
@@ -239,7 +277,9 @@ class TieBarrier:
     def _tie_rows(
         self, surface: ContactSurface, nodes: int, faces: int, tolerance: float
     ) -> tuple[sp.csr_matrix, np.ndarray]:
-        """Rows of :math:`B` tying the nodes of group ``nodes`` to the triangles of group ``faces``, and their gaps.
+        """Rows of :math:`B` tying the nodes of group ``nodes`` to the facets of group ``faces``, and their gaps.
+
+        The facets are triangles in 3D, segments in 2D.
 
         Raises:
             ParameterError: A node farther than ``tolerance`` from the triangles (the groups do not face).
@@ -249,8 +289,10 @@ class TieBarrier:
         triangles = surface.faces[np.all(surface.group[surface.faces] == faces, axis=1)]
         name = (self.contact.slave, self.contact.master)
         if not len(triangles):
-            raise ParameterError(f"{self.where}: the group {name[faces]!r} has no triangles of its own")
-        index, weights, distance = closest_on_triangles(X[tied], X[triangles])
+            kind = "triangles" if X.shape[1] == 3 else "segments"
+            raise ParameterError(f"{self.where}: the group {name[faces]!r} has no {kind} of its own")
+        closest = closest_on_triangles if X.shape[1] == 3 else closest_on_segments
+        index, weights, distance = closest(X[tied], X[triangles])
         if len(distance) and distance.max() > tolerance:
             k = int(distance.argmax())
             raise ParameterError(
@@ -258,7 +300,7 @@ class TieBarrier:
                 f"{distance[k]:.3g} from {name[faces]!r} (tolerance {tolerance:.3g}): the groups do not face each other"
             )
         m = len(tied)
-        rows = np.repeat(np.arange(m), 4)
+        rows = np.repeat(np.arange(m), 1 + triangles.shape[1])
         cols = np.column_stack([tied, triangles[index]]).ravel()
         vals = np.column_stack([np.ones(m), -weights]).ravel()
         return sp.csr_matrix((vals, (rows, cols)), shape=(m, surface.size)), distance
@@ -285,7 +327,7 @@ class TieBarrier:
         return self.stiffness * (self._B.T @ self._residuals(u))
 
     def _own_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        g = self._gradient_full(u).reshape(-1, 3)
+        g = self._gradient_full(u).reshape(-1, self.dim)
         return self.surface.dofs, g[self.surface.rows]
 
     def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -297,7 +339,7 @@ class TieBarrier:
 
     def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """No node blocks (the Hessian couples nodes: :meth:`coupled_hessian`)."""
-        return self.surface.dofs[:0], np.zeros((0, 3, 3))
+        return self.surface.dofs[:0], np.zeros((0, self.dim, self.dim))
 
     def coupled_hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         r""":math:`k B^T B` in this rank's owned rows, Dirichlet rows and columns left out.
@@ -324,13 +366,13 @@ class TieBarrier:
     def force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
         r"""The force the master side exerts on the slave group, :math:`-\sum_{a} \partial T/\partial u_a`."""
         state = self.problem.u.x.array if u is None else (u.array_r if isinstance(u, PETSc.Vec) else u)
-        g = self._gradient_full(state).reshape(-1, 3)
+        g = self._gradient_full(state).reshape(-1, self.dim)
         return -g[self.surface.group == 0].sum(axis=0)
 
     def max_gap(self, u: np.ndarray | PETSc.Vec | None = None) -> float:
         """The largest distance of a slave node from its tied place on the master surface (collective)."""
         state = self.problem.u.x.array if u is None else (u.array_r if isinstance(u, PETSc.Vec) else u)
-        r = self._residuals(state).reshape(-1, 3)
+        r = self._residuals(state).reshape(-1, self.dim)
         return float(np.linalg.norm(r, axis=1).max()) if len(r) else 0.0
 
     def summary(self) -> dict[str, object]:
