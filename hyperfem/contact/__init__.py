@@ -22,7 +22,7 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   :mod:`~hyperfem.contact.tool`, shapes in :mod:`~hyperfem.contact.shapes`). In 2D
   (plane strain, triangles or quadrilaterals) between boundary segments, a tool a polyline.
 * Gluing: :class:`TieContact` (two groups of non-matching meshes held
-  together by a two-pass penalty tie; :mod:`~hyperfem.contact.tie`).
+  together by a two-pass penalty tie, in 2D along boundary segments; :mod:`~hyperfem.contact.tie`).
 * :class:`ContactField` (:mod:`~hyperfem.contact.field`): the nodal contact
   force, traction and gap of every contact as a VTX series for ParaView.
 * Under generalized-:math:`\alpha` the contact force is interpolated between
