@@ -69,6 +69,7 @@ Example::
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -89,6 +90,28 @@ TIE_FACTOR = 1e8
 r"""The tie's penalty by default: this factor times the mean tangent diagonal at the tied nodes."""
 
 
+def _closest_in_chunks(
+    points: np.ndarray, facets: np.ndarray, candidates: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closest facet of each point, all points against all facets in chunks of about 10^6 pairs.
+
+    ``candidates(p)`` gives, for points ``p`` of shape ``(c, 1, d)``, the weights ``(c, f, k)`` of the closest
+    point on each facet and its distance ``(c, f)``.
+    """
+    index = np.zeros(len(points), dtype=np.int64)
+    weights = np.zeros((len(points), facets.shape[1]))
+    distance = np.full(len(points), np.inf)
+    chunk = max(1, 1_000_000 // max(1, len(facets)))
+    for start in range(0, len(points), chunk):
+        w, d = candidates(points[start : start + chunk][:, None, :])
+        k = d.argmin(axis=1)
+        rows = np.arange(len(k))
+        index[start : start + chunk] = k
+        weights[start : start + chunk] = w[rows, k]
+        distance[start : start + chunk] = d[rows, k]
+    return index, weights, distance
+
+
 def closest_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The closest triangle of each point and the barycentric weights of the closest point on it.
 
@@ -104,33 +127,26 @@ def closest_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.
         The triangle index ``(m,)``, the weights ``(m, 3)`` and the distance ``(m,)``.
     """
     a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    index = np.zeros(len(points), dtype=np.int64)
-    weights = np.zeros((len(points), 3))
-    distance = np.full(len(points), np.inf)
-    chunk = max(1, 1_000_000 // max(1, len(triangles)))
-    for start in range(0, len(points), chunk):
-        p = points[start : start + chunk][:, None, :]
-        candidates = [_plane_weights(p, a, b, c)]
+
+    def candidates(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        options = [_plane_weights(p, a, b, c)]
         for i, j in ((0, 1), (1, 2), (0, 2)):
             corners = (a, b, c)
             s = _segment_parameter(p, corners[i], corners[j])
             w = np.zeros(s.shape + (3,))
             w[..., i], w[..., j] = 1.0 - s, s
-            candidates.append(w)
-        best_w = np.zeros(candidates[0].shape)
-        best_d = np.full(candidates[0].shape[:-1], np.inf)
-        for w in candidates:
+            options.append(w)
+        best_w = np.zeros(options[0].shape)
+        best_d = np.full(options[0].shape[:-1], np.inf)
+        for w in options:
             q = w[..., 0:1] * a + w[..., 1:2] * b + w[..., 2:3] * c
             d = np.linalg.norm(p - q, axis=-1)
             better = d < best_d  # NaN (a projection outside its triangle) is never better
             best_w = np.where(better[..., None], w, best_w)
             best_d = np.where(better, d, best_d)
-        k = best_d.argmin(axis=1)
-        rows = np.arange(len(k))
-        index[start : start + chunk] = k
-        weights[start : start + chunk] = best_w[rows, k]
-        distance[start : start + chunk] = best_d[rows, k]
-    return index, weights, distance
+        return best_w, best_d
+
+    return _closest_in_chunks(points, triangles, candidates)
 
 
 def closest_on_segments(points: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -144,20 +160,13 @@ def closest_on_segments(points: np.ndarray, segments: np.ndarray) -> tuple[np.nd
         The segment index ``(m,)``, the weights ``(m, 2)`` and the distance ``(m,)``.
     """
     a, b = segments[:, 0], segments[:, 1]
-    index = np.zeros(len(points), dtype=np.int64)
-    weights = np.zeros((len(points), 2))
-    distance = np.full(len(points), np.inf)
-    chunk = max(1, 1_000_000 // max(1, len(segments)))
-    for start in range(0, len(points), chunk):
-        p = points[start : start + chunk][:, None, :]
+
+    def candidates(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t = _segment_parameter(p, a, b)
         d = np.linalg.norm(p - (a + t[..., None] * (b - a)), axis=-1)
-        k = d.argmin(axis=1)
-        rows = np.arange(len(k))
-        index[start : start + chunk] = k
-        weights[start : start + chunk] = np.column_stack([1.0 - t[rows, k], t[rows, k]])
-        distance[start : start + chunk] = d[rows, k]
-    return index, weights, distance
+        return np.stack([1.0 - t, t], axis=-1), d
+
+    return _closest_in_chunks(points, segments, candidates)
 
 
 def _plane_weights(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
