@@ -263,11 +263,12 @@ class TieBarrier:
         X = surface.X
         sizes = np.linalg.norm(X[surface.faces][:, 1] - X[surface.faces][:, 0], axis=1)
         tolerance = contact.tolerance if contact.tolerance is not None else 0.01 * float(sizes.mean())
-        # Two passes: the slave nodes on the master triangles, and the master nodes on the slave triangles.
+        self.dim = X.shape[1]
+        # Two passes: the slave nodes on the master facets, and the master nodes on the slave facets.
         passes = [self._tie_rows(surface, 0, 1, tolerance), self._tie_rows(surface, 1, 0, tolerance)]
         self.gaps = np.concatenate([gaps for _, gaps in passes])
         B = sp.vstack([rows for rows, _ in passes]).tocsr()
-        d = self.dim = X.shape[1]
+        d = self.dim
         self._B = sp.kron(B, sp.identity(d), format="csr")
         self._global = surface.global_dofs.ravel()
         self._fixed = surface.constrained.ravel()
@@ -291,17 +292,17 @@ class TieBarrier:
         The facets are triangles in 3D, segments in 2D.
 
         Raises:
-            ParameterError: A node farther than ``tolerance`` from the triangles (the groups do not face).
+            ParameterError: A node farther than ``tolerance`` from the facets (the groups do not face).
         """
         X = surface.X
         tied = np.flatnonzero(surface.group == nodes)
-        triangles = surface.faces[np.all(surface.group[surface.faces] == faces, axis=1)]
+        facets = surface.faces[np.all(surface.group[surface.faces] == faces, axis=1)]
         name = (self.contact.slave, self.contact.master)
-        if not len(triangles):
-            kind = "triangles" if X.shape[1] == 3 else "segments"
+        if not len(facets):
+            kind = "triangles" if self.dim == 3 else "segments"
             raise ParameterError(f"{self.where}: the group {name[faces]!r} has no {kind} of its own")
-        closest = closest_on_triangles if X.shape[1] == 3 else closest_on_segments
-        index, weights, distance = closest(X[tied], X[triangles])
+        closest = closest_on_triangles if self.dim == 3 else closest_on_segments
+        index, weights, distance = closest(X[tied], X[facets])
         if len(distance) and distance.max() > tolerance:
             k = int(distance.argmax())
             raise ParameterError(
@@ -309,8 +310,8 @@ class TieBarrier:
                 f"{distance[k]:.3g} from {name[faces]!r} (tolerance {tolerance:.3g}): the groups do not face each other"
             )
         m = len(tied)
-        rows = np.repeat(np.arange(m), 1 + triangles.shape[1])
-        cols = np.column_stack([tied, triangles[index]]).ravel()
+        rows = np.repeat(np.arange(m), 1 + facets.shape[1])
+        cols = np.column_stack([tied, facets[index]]).ravel()
         vals = np.column_stack([np.ones(m), -weights]).ravel()
         return sp.csr_matrix((vals, (rows, cols)), shape=(m, surface.size)), distance
 

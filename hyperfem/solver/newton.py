@@ -213,11 +213,12 @@ def preconditioner_rebuilt(iteration: int, lag: int) -> bool:
     """Whether SNES sets the preconditioner up again after the tangent of Newton iteration ``iteration``.
 
     SNES's rule for ``snes_lag_preconditioner`` = ``lag`` (``SNESComputeJacobian``): -1 never (after the
-    first), ``lag`` > 1 at the iterations that are multiples of it, else always. A preconditioning matrix
-    that differs from the tangent (the AIJ copy of a blocked one, a shifted one) is only read when the
-    preconditioner is set up, so it is updated only then: the other iterations' copies changed nothing
-    (measured: the same Krylov iterations and displacements to the last bit) and cost 7–15 % of a P1 or P2
-    tangent assembly (bend, 28.6k unknowns: 9 of 64 ms serial, 7 of 45 ms on 2 ranks; P2 22 of 320 ms).
+    first), ``lag`` > 1 at the iterations that are multiples of it, else always. The AIJ copy of a blocked
+    tangent (AMG's preconditioning matrix) is only read when the preconditioner is set up, so inside the
+    SNES solve it is updated only then: the other iterations' copies changed nothing (measured: the same
+    Krylov iterations and displacements to the last bit) and cost 7–15 % of a P1 or P2 tangent assembly
+    (bend, 28.6k unknowns: 9 of 64 ms serial, 7 of 45 ms on 2 ranks; P2 22 of 320 ms). A shifted
+    preconditioning matrix (the mixed field split) is updated at every tangent, as before.
     """
     if lag == -1:
         return iteration == 0
