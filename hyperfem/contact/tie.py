@@ -374,7 +374,11 @@ class TieBarrier:
 
     # -- outputs ------------------------------------------------------------
     def force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
-        r"""The force the master side exerts on the slave group, :math:`-\sum_{a} \partial T/\partial u_a`."""
+        r"""The force the master side exerts on the slave group, :math:`-\sum_{a} \partial T/\partial u_a` (collective).
+
+        Every rank must call it: the tie gathers the surface from all ranks, and
+        a call from one rank alone waits for the others forever. The result is
+        the same on every rank."""
         state = self.problem.u.x.array if u is None else (u.array_r if isinstance(u, PETSc.Vec) else u)
         g = self._gradient_full(state).reshape(-1, self.dim)
         return -g[self.surface.group == 0].sum(axis=0)
@@ -386,7 +390,7 @@ class TieBarrier:
         return float(np.linalg.norm(r, axis=1).max()) if len(r) else 0.0
 
     def summary(self) -> dict[str, object]:
-        """The summary's ``contact`` entry: type, groups, last force on the slave group, largest gap."""
+        """The summary's ``contact`` entry: type, groups, last force on the slave group, largest gap (collective)."""
         entry = {
             "type": "TieContact",
             "boundaries": [self.contact.slave, self.contact.master],
@@ -396,6 +400,6 @@ class TieBarrier:
         return {"contact": {self.contact.name: entry}}
 
     def record(self, step: object = None) -> dict[str, object]:
-        """The output columns: ``<name>_force`` (on the slave group), ``<name>_max_gap``."""
+        """The output columns: ``<name>_force`` (on the slave group), ``<name>_max_gap`` (collective)."""
         name = self.contact.name
         return {f"{name}_force": [float(v) for v in self.force()], f"{name}_max_gap": self.max_gap()}

@@ -93,6 +93,14 @@ def merge_options(
         linear = {k: v for k, v in linear.items() if not k.startswith(_PC_SPECIFIC) or k == "pc_type"}
         if user["pc_type"] in ("lu", "cholesky"):  # PETSc's own factorisations are serial only
             linear["pc_factor_mat_solver_type"] = "mumps"
+            # The AMG paths lag their hierarchy (snes_lag_preconditioner 2-5). A lagged factorisation
+            # is a chord method: measured (benchmarks/linear_degree.py, bend, full load), P2 at
+            # 30.8k unknowns took 16 Newton iterations with LU lagged by 5 and 4 without. The
+            # user's own lag, if any, is kept below.
+            linear.pop("snes_lag_preconditioner", None)
+    if user.get("ksp_type") == "preonly" and linear.get("ksp_type") != "preonly":
+        # One preconditioner application: the Krylov method's tolerances and restart would be unused.
+        linear = {k: v for k, v in linear.items() if not k.startswith("ksp_")}
     return {**defaults, **linear, **user}
 
 
