@@ -127,6 +127,7 @@ def single(args) -> None:
         if args.variant.startswith("hyperfem"):
             forced = {"hyperfem-iterative": 0, "hyperfem-direct": 2**62}.get(args.variant)
             linear = None if forced is None else choose_linear_solver(problem, mixed_threshold=forced)
+            linear = _with_petsc(linear, problem, args.petsc, row)
             solver = hf.NewtonSolver(problem, linear_solver=linear)
             setup = time.perf_counter() - t0
             before = _events()
@@ -169,10 +170,7 @@ def single(args) -> None:
         linear = None if forced is None else choose_linear_solver(problem, threshold=forced)
         if args.variant == "hyperfem-hand-tuned":
             linear = _hand_tuned(problem)
-        if args.petsc:
-            base = linear if linear is not None else choose_linear_solver(problem)
-            linear = replace(base, options={**base.options, **_parse_options(args.petsc)})
-            row["petsc"] = args.petsc
+        linear = _with_petsc(linear, problem, args.petsc, row)
         solver = hf.NewtonSolver(problem, linear_solver=linear)
         problem.set_time(1.0)
         setup = time.perf_counter() - t0
@@ -233,6 +231,17 @@ def single(args) -> None:
     row["test_point"] = [float(c) for c in PointProbe(domain.mesh, [TEST_POINT])(u)[0]]
     if comm.rank == 0:
         print("RESULT " + json.dumps(row), flush=True)
+
+
+def _with_petsc(linear, problem, petsc: list[str], row: dict):
+    """``linear`` (``None``: the automatic choice) with the ``--petsc`` options over its own; noted in ``row``."""
+    if not petsc:
+        return linear
+    from hyperfem.solver.linear import choose_linear_solver
+
+    base = linear if linear is not None else choose_linear_solver(problem)
+    row["petsc"] = petsc
+    return replace(base, options={**base.options, **_parse_options(petsc)})
 
 
 def _launch(N, degree, case, variant, ranks, timeout, formulation="displacement", petsc=()):

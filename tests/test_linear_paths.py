@@ -122,10 +122,10 @@ def problem_dofs(problem) -> np.ndarray:
 
 
 def test_high_degrees_keep_lu_to_larger_sizes():
-    """P3-P5 tangents defeat AMG (80+ CG iterations per solve at P5): LU up to 40k (P3) and 150k (P4+) unknowns."""
+    """P3-P5 tangents need 135-325 CG iterations per solve: LU up to 20k (P3), 50k (P4) and 150k (P5+) unknowns."""
     from dolfinx import mesh as dmesh
 
-    from hyperfem.solver.linear import DIRECT_THRESHOLD, HIGH_ORDER_DIRECT_THRESHOLDS
+    from hyperfem.solver.linear import DIRECT_THRESHOLD, HIGH_ORDER_DIRECT_THRESHOLDS, direct_threshold
 
     def kind(cells, degree):
         box = dmesh.create_box(MPI.COMM_WORLD, [[0.0, 0.0, 0.0], [10.0, 4.0, 4.0]], cells)
@@ -140,5 +140,7 @@ def test_high_degrees_keep_lu_to_larger_sizes():
     assert DIRECT_THRESHOLD < n2 and k2 == "cg"
     assert DIRECT_THRESHOLD < n3 < HIGH_ORDER_DIRECT_THRESHOLDS[3] and k3 == "preonly"
     assert DIRECT_THRESHOLD < n4 < HIGH_ORDER_DIRECT_THRESHOLDS[4] and k4 == "preonly"
+    assert [direct_threshold(d) for d in (1, 2)] == [DIRECT_THRESHOLD] * 2
+    assert direct_threshold(5) == direct_threshold(7) > direct_threshold(4) > direct_threshold(3) > DIRECT_THRESHOLD
     # An explicit threshold still wins (P3 above it: CG).
     assert choose_linear_solver(p3, threshold=DIRECT_THRESHOLD - 1).options.get("ksp_type") == "cg"

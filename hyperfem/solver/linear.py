@@ -78,6 +78,7 @@ __all__ = [
     "ShiftedPreconditioner",
     "choose_linear_solver",
     "describe",
+    "direct_threshold",
     "pc_setup_seconds",
     "rigid_body_modes",
     "unique_prefix",
@@ -179,30 +180,50 @@ times are small: 0.29–0.31 / 0.17–0.18 s at 4.1k, 0.61–0.62 / 0.29 s at
 The threshold does not depend on the number of ranks, so a problem takes the
 same path on any number of them."""
 
-HIGH_ORDER_DIRECT_THRESHOLDS: dict[int, int] = {3: 40_000, 4: 150_000}
-"""Unknowns from which a displacement problem of degree 3, and of degree 4 and higher, is solved iteratively.
+HIGH_ORDER_DIRECT_THRESHOLDS: dict[int, int] = {3: 20_000, 4: 50_000, 5: 150_000}
+"""Unknowns from which a displacement problem of degree 3, 4, and 5 and higher is solved iteratively.
 
 Smoothed-aggregation AMG is built for low-order stencils: on P3–P5 it needs
-many more CG iterations per solve, each on a tangent with 450–1,500 nonzeros
-per row, while the LU factorisation grows less than that. Measured with
-``benchmarks/linear_degree.py`` (bend, full load in one step, serial, this
-2-core machine with the other core busy; the Newton solve after JIT):
+more CG iterations per solve (135–325 against 50–85 on P1/P2), each on a
+tangent with 450–1,500 nonzeros per row, while the LU factorisation grows
+less than that. Measured with ``benchmarks/linear_degree.py`` (bend, full
+load in one Newton solve after JIT, serial, quiet 2-core machine, both paths
+forced through the threshold; ``results/linear_degree_s32.jsonl``):
 
 =====  ========  ==================  ==============
 degree unknowns  CG + GAMG           MUMPS
 =====  ========  ==================  ==============
-P1     12.2k     0.8 s (77 CG its)   1.4 s
-P2     30.8k     5.4 s (126)         7.1 s
-P3     16.1k     3.9 s (192)         2.9 s
-P3     45.1k     15.3 s (182)        17.3 s
-P4     35.8k     30.1 s (290)        16.7 s
-P5     67.4k     87.0 s (416)        43.7 s
+P1     12.2k     0.52 s (49 CG its)  1.23 s
+P2     30.8k     3.43 s (83)         7.08 s
+P3     9.2k      1.50 s (142)        1.80 s
+P3     16.1k     3.55 s (138)        3.66 s
+P3     45.1k     10.4 s (135)        14.4 s
+P4     20.4k     8.45 s (201)        7.94 s
+P4     35.8k     16.5 s (189)        15.1 s
+P4     67.3k     28.4 s (192)        31.3 s
+P5     38.2k     27.0 s (271)        22.6 s
+P5     67.4k     64.0 s (324)        54.4 s
 =====  ========  ==================  ==============
 
-A P5 bend on beam_h1 had gone from 39 s (MUMPS, before the iterative path)
-to 190 s; with these thresholds it is back on MUMPS. The P4/P5 crossover
-lies above the sizes measured; 150k unknowns is a guess that keeps the LU's
-memory (about 5 GB at 150k for P4, extrapolated) well inside a laptop."""
+Every pair took the same Newton iterations (4; P5 at 67k: 5 and 4). The
+crossovers lie near 16k (P3) and between 36k and 67k (P4); P5 stays on LU
+beyond the sizes measured (at 67k also 57.6 / 49.9 s in a first run), so
+its 150k is a guess that keeps the LU's memory (about 5 GB) inside a laptop.
+The thresholds before the BAIJ tangent and lagged hierarchy were 40k (P3)
+and 150k (P4 and up), when AMG took 30 s on the 35.8k P4 bend against 17 s
+for MUMPS. A P5 bend on ``beam_h1`` had gone from 39 s (MUMPS, before the
+iterative path) to 190 s; it is on MUMPS again."""
+
+
+def direct_threshold(degree: int) -> int:
+    """Unknowns from which a displacement problem of polynomial degree ``degree`` is solved iteratively.
+
+    :data:`DIRECT_THRESHOLD` for P1 and P2, :data:`HIGH_ORDER_DIRECT_THRESHOLDS` above.
+    """
+    if degree < 3:
+        return DIRECT_THRESHOLD
+    return HIGH_ORDER_DIRECT_THRESHOLDS[min(degree, max(HIGH_ORDER_DIRECT_THRESHOLDS))]
+
 
 BLOCKED_TANGENT = "baij"
 """Matrix type of the tangent on the iterative displacement path (:attr:`LinearSolver.matrix_kind`).
@@ -526,7 +547,7 @@ def choose_linear_solver(
         )
     degree = V.ufl_element().embedded_superdegree
     if threshold is None:  # by degree: AMG needs far more Krylov iterations on P3 and above
-        threshold = HIGH_ORDER_DIRECT_THRESHOLDS[min(degree, 4)] if degree >= 3 else DIRECT_THRESHOLD
+        threshold = direct_threshold(degree)
     if _global_size(W) < threshold:
         return LinearSolver()
     options = dict(SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE)
