@@ -425,9 +425,17 @@ class MeshBarrier:
             return np.zeros(self.dim * (self.surface.size + (0 if self.tool is None else len(self.tool.points))))
         return np.asarray(self._friction.gradient(slip[0], self.mesh, slip[1])).ravel()  # type: ignore[union-attr, unused-ignore]
 
-    def friction_force(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
-        r"""The friction force on the body's surface nodes, :math:`-\sum_a \partial D/\partial x_a`."""
+    def friction_force(self, u: np.ndarray | PETSc.Vec | None = None, group: int | None = None) -> np.ndarray:
+        r"""The friction force on the body's surface nodes (of one group), :math:`-\sum_a \partial D/\partial x_a`.
+
+        Args:
+            u: The unknown's local array or a SNES vector (default: the current state).
+            group: Index into the surface's boundaries (``None``: every node; of a pair contact that sums the
+                forces on both bodies, which cancel, as for :meth:`force`).
+        """
         g = self._friction_gradient(self._state(u)).reshape(-1, self.dim)[: self.surface.size]
+        if group is not None:
+            g = g[self.surface.group == group]
         return -g.sum(axis=0)
 
     # -- the ExternalEnergy contract ----------------------------------------
@@ -651,11 +659,16 @@ class MeshBarrier:
             g = g[self.surface.group == group]
         return -g.sum(axis=0)
 
-    def moment(self, u: np.ndarray | PETSc.Vec | None = None) -> np.ndarray:
-        r"""The moment about the origin of the contact forces (friction included) on the surface nodes.
+    def moment(self, u: np.ndarray | PETSc.Vec | None = None, group: int | None = None) -> np.ndarray:
+        r"""The moment about the origin of the contact forces (friction included) on the surface nodes (of one group).
 
         :math:`\sum_a x_a \times f_a`, the same on every rank (collective); zero-padded to 3 components in 2D
         (the moment about z in the last).
+
+        Args:
+            u: The unknown's local array or a SNES vector (default: the current state).
+            group: Index into the surface's boundaries (``None``: every node; of a pair contact the moments on
+                both bodies, which cancel, as for :meth:`force`).
         """
         state = self._state(u)
         g = self._gradient_full(state)
@@ -663,6 +676,8 @@ class MeshBarrier:
             g = g + self._friction_gradient(state)
         x = self.surface.positions(state)
         f = -g.reshape(-1, self.dim)[: self.surface.size]
+        if group is not None:
+            x, f = x[self.surface.group == group], f[self.surface.group == group]
         if self.dim == 2:
             return np.array([0.0, 0.0, float((x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0]).sum())])
         return np.cross(x, f).sum(axis=0)
@@ -674,12 +689,12 @@ class MeshBarrier:
             "type": type(self.contact).__name__,
             "boundaries": list(self.surface.boundaries),
             "force": [float(v) for v in self.force(group=group)],
-            "moment": [float(v) for v in self.moment()],
+            "moment": [float(v) for v in self.moment(group=group)],
             "active": self.active_count(),
             "min_distance": self.min_distance(),
         }
         if self.mu > 0.0:
-            entry["friction_force"] = [float(v) for v in self.friction_force()]
+            entry["friction_force"] = [float(v) for v in self.friction_force(group=group)]
         return {"contact": {self.contact.name: entry}}
 
     def active_count(self, u: np.ndarray | PETSc.Vec | None = None) -> int:
@@ -712,7 +727,7 @@ class MeshBarrier:
 
     def record(self, step: object = None) -> dict[str, object]:
         """The output columns: ``<name>_force`` (on the first boundary, or on the body from a tool), ``_active``,
-        ``_min_distance``."""
+        ``_min_distance``; with friction ``_friction_force`` (on the same nodes)."""
         name = self.contact.name
         group = None if self.tool is not None else 0
         out: dict[str, object] = {
@@ -720,8 +735,8 @@ class MeshBarrier:
             f"{name}_active": self.active_count(),
             f"{name}_min_distance": self.min_distance(),
         }
-        if self.mu > 0.0:
-            out[f"{name}_friction_force"] = [float(v) for v in self.friction_force()]
+        if self.mu > 0.0:  # on the same nodes as the force (a pair's on the first boundary: both bodies' cancel)
+            out[f"{name}_friction_force"] = [float(v) for v in self.friction_force(group=group)]
         return out
 
 
