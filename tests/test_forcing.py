@@ -54,9 +54,15 @@ def test_the_predicted_last_step_is_solved_tighter_and_the_tolerance_restored():
 def test_the_tightening_is_bounded_and_leaves_direct_solvers_alone():
     snes = _snes()
     forcing = FinalStepForcing(snes)
-    for it, norm in enumerate([1.0, 1e4, 0.1]):  # target 1e-9: would ask for 1e-4 of the configured 1e-6
+    for it, norm in enumerate([1.0, 1e4, 0.1]):  # target 1e-9: would ask for 1e-10
         forcing(snes, it, norm, 0)
-    assert snes.getKSP().getTolerances()[0] == pytest.approx(DEEPEST * 1e-6)
+    assert snes.getKSP().getTolerances()[0] == pytest.approx(DEEPEST)
+    forcing.restore()
+    loose = _snes(rtol=1e-4)  # the floor does not rise with the configured tolerance
+    forcing = FinalStepForcing(loose)
+    for it, norm in enumerate([1.0, 1e4, 0.1]):
+        forcing(loose, it, norm, 0)
+    assert loose.getKSP().getTolerances()[0] == pytest.approx(DEEPEST)
     forcing.restore()
     direct = _snes("preonly")
     forcing = FinalStepForcing(direct)
