@@ -257,6 +257,29 @@ def test_flat_polyline_tool_is_the_plane(cell):
     assert min(iterates) > 0.0 and not tool.intersecting()
 
 
+def test_polyline_tool_read_from_a_file_is_the_arrays_tool(shared_tmp):
+    """A polyline in a gmsh or VTU file (line cells, z = 0; an unused point dropped) gives the arrays' tool: the same
+    points and segments, and pressed under the square the same force as the reaction (to 1e-8)."""
+    import meshio
+
+    padded = np.vstack([np.hstack([PLATE, np.zeros((3, 1))]), [[9.0, 9.0, 0.0]]])
+    files = [shared_tmp / "plate.msh", shared_tmp / "plate.vtu"]
+    if MPI.COMM_WORLD.rank == 0:
+        for path in files:
+            kwargs = {"file_format": "gmsh22", "binary": False} if path.suffix == ".msh" else {}
+            meshio.write_points_cells(path, padded, [("line", PLATE_SEGMENTS)], **kwargs)
+    MPI.COMM_WORLD.barrier()
+    for path in files:
+        tool = ToolContact(["bottom"], file=path, dhat=DHAT)
+        np.testing.assert_array_equal(tool.points, PLATE)
+        np.testing.assert_array_equal(tool.triangles, PLATE_SEGMENTS)
+    problem = _pressed_square()
+    bound = tool.bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[bound])
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    assert bound.force()[1] == pytest.approx(-ReactionForce(problem, "top")()[1], rel=1e-8)
+
+
 def test_polyline_tool_pushed_into_a_resting_square_equals_the_square_pushed_onto_it():
     """The tool moved 0.1 up into the square resting on it (top held) = the top pushed 0.1 down onto the fixed tool:
     the predictor carries the bottom nodes the tool would overrun (2D ray casting against the segments)."""
@@ -381,7 +404,8 @@ def test_unsupported_input_is_refused_in_one_line():
     problem = _pressed_square(delta=0.0)
     triangle = np.array([[-1.0, -1.0, -0.1], [3.0, -1.0, -0.1], [0.0, 3.0, -0.1]])
     with pytest.raises(ParameterError, match=r"^ToolContact on \['bottom'\]: a 3D tool on a 2D mesh; give a "
-                       r"polyline, points \(k, 2\) and segments \(s, 2\) \(ToolContact.from_arrays\)$"):
+                       r"polyline, points \(k, 2\) and segments \(s, 2\) \(ToolContact.from_arrays\) or a file "
+                       r"of line segments at z = 0$"):
         ToolContact.from_arrays(["bottom"], triangle, np.array([[0, 1, 2]])).bind(problem)
     with pytest.raises(ParameterError, match=r"segments of a 2D tool must be \(s, 2\) indices into points$"):
         ToolContact.from_arrays(["bottom"], PLATE, np.array([[0, 1, 2]]))

@@ -207,8 +207,12 @@ def test_bad_tool_input_is_one_line(tmp_path):
         ToolContact(["bottom"], file=tmp_path / "missing.stl")
     lines = tmp_path / "lines.vtk"
     meshio.write_points_cells(lines, PLATE, [("line", np.array([[0, 1]]))])
-    with pytest.raises(MeshError, match="no triangles"):
+    with pytest.raises(MeshError, match="must lie in the plane z = 0"):  # line cells: a 2D polyline, but at z != 0
         ToolContact(["bottom"], file=lines)
+    dots = tmp_path / "dots.vtk"
+    meshio.write_points_cells(dots, PLATE, [("vertex", np.array([[0], [1]]))])
+    with pytest.raises(MeshError, match=r"has no triangles \(a 3D tool\) or line segments \(a 2D polyline\)"):
+        ToolContact(["bottom"], file=dots)
     with pytest.raises(ParameterError, match="dhat must be"):
         ToolContact.from_arrays(["bottom"], PLATE, PLATE_TRIANGLES, dhat=-1.0)
     with pytest.raises(ParameterError, match="either file or points"):

@@ -15,11 +15,13 @@ through a body face between its nodes, nor a body node pass through a tool
 face. The tool's output force (``<name>_force``) is the force the tool
 exerts on the body.
 
-In 2D (plane strain) the tool is a polyline given as arrays: points
-``(k, 2)`` and segments ``(s, 2)`` (:meth:`ToolContact.from_arrays`; the
-``triangles`` entry holds the segments), its motion and offset 2 components,
-no rotation; the pairs are edge–vertex pairs between the body's boundary
-segments and the tool's. A tool file gives triangles: a 3D tool.
+In 2D (plane strain) the tool is a polyline: points ``(k, 2)`` and segments
+``(s, 2)`` given as arrays (:meth:`ToolContact.from_arrays`; the
+``triangles`` entry holds the segments) or read from a file whose cells are
+line segments in the plane z = 0 and which has no triangles (gmsh, VTK/VTU,
+...: :func:`read_tool_surface`); its motion and offset have 2 components, no
+rotation; the pairs are edge–vertex pairs between the body's boundary
+segments and the tool's. A file with triangles gives a 3D tool.
 
 Example::
 
@@ -51,10 +53,15 @@ __all__ = ["ToolContact", "read_tool_surface"]
 
 
 def read_tool_surface(path: str | Path, where: str) -> tuple[np.ndarray, np.ndarray]:
-    """The points ``(k, 3)`` and triangles ``(f, 3)`` of a surface file (every triangle block; unused points dropped).
+    """The points and facets of a tool file: a surface, or in 2D a polyline (unused points dropped).
+
+    A file with triangles gives a 3D tool: points ``(k, 3)`` and every triangle block's triangles ``(f, 3)``. A
+    file with line segments and no triangles gives a 2D polyline: points ``(k, 2)`` (the file's z, if any, must be
+    0) and every line block's segments ``(s, 2)``.
 
     Raises:
-        MeshError: The file is missing, cannot be read, or has no triangles (one line).
+        MeshError: The file is missing, cannot be read, has neither triangles nor line segments, or holds a
+            polyline off the plane z = 0 (one line).
     """
     import meshio
 
@@ -66,16 +73,26 @@ def read_tool_surface(path: str | Path, where: str) -> tuple[np.ndarray, np.ndar
     except Exception as exc:  # meshio raises many kinds
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise MeshError(f"{where}: cannot read the tool surface {str(path)!r}: {first}") from None
-    blocks = [np.asarray(block.data) for block in mesh.cells if block.type == "triangle"]
+    points = np.asarray(mesh.points, dtype=float)
+    triangles = [np.asarray(block.data) for block in mesh.cells if block.type == "triangle"]
+    lines = [np.asarray(block.data) for block in mesh.cells if block.type == "line"]
+    blocks, dim = (triangles, 3) if triangles else (lines, 2)
     if not blocks:
         kinds = ", ".join(sorted({block.type for block in mesh.cells})) or "none"
-        raise MeshError(f"{where}: the tool surface {str(path)!r} has no triangles (cell types: {kinds})")
-    triangles = np.concatenate(blocks).astype(np.int64)
-    points = np.asarray(mesh.points, dtype=float)
+        raise MeshError(
+            f"{where}: the tool surface {str(path)!r} has no triangles (a 3D tool) or line segments (a 2D "
+            f"polyline) (cell types: {kinds})"
+        )
+    facets = np.concatenate(blocks).astype(np.int64)
+    used, inverse = np.unique(facets, return_inverse=True)
+    points = points[used]
+    if dim == 2:
+        if points.shape[1] > 2 and np.abs(points[:, 2:]).max(initial=0.0) > 0.0:
+            raise MeshError(f"{where}: the polyline {str(path)!r} must lie in the plane z = 0 (a 2D tool)")
+        return points[:, :2], inverse.reshape(-1, 2).astype(np.int32)
     if points.shape[1] == 2:
         points = np.hstack([points, np.zeros((len(points), 1))])
-    used, faces = np.unique(triangles, return_inverse=True)
-    return points[used, :3], faces.reshape(-1, 3).astype(np.int32)
+    return points[:, :3], inverse.reshape(-1, 3).astype(np.int32)
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,8 +145,11 @@ class ToolContact:
     def __post_init__(self) -> None:
         names, where = check_boundaries(self.boundaries, "ToolContact")
         object.__setattr__(self, "boundaries", tuple(names))
-        given = None if self.points is None else np.asarray(self.points)
-        dim = 2 if self.file is None and given is not None and given.ndim == 2 and given.shape[1] == 2 else 3
+        if (self.file is None) == (self.points is None):
+            raise ParameterError(f"{where}: give either file or points and triangles")
+        read = None if self.file is None else read_tool_surface(self.file, where)
+        given = np.asarray(self.points) if read is None else read[0]
+        dim = 2 if given.ndim == 2 and given.shape[1] == 2 else 3
         check_rotation(self.rotation, dim, where)
         if callable(self.motion):
             start = np.asarray(self.motion(0.0), dtype=float)
@@ -150,10 +170,8 @@ class ToolContact:
             where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=self.friction,
             friction_epsilon=self.friction_epsilon, profile=self.profile, name=self.name,
         )
-        if (self.file is None) == (self.points is None):
-            raise ParameterError(f"{where}: give either file or points and triangles")
-        if self.file is not None:
-            points, faces = read_tool_surface(self.file, where)
+        if read is not None:
+            points, faces = read
         else:
             if self.triangles is None:
                 raise ParameterError(f"{where}: points need triangles")
@@ -201,10 +219,11 @@ class ToolContact:
         surface = contact_surface(problem, self.boundaries, self.where)
         tool = self.surface
         if tool.dim != surface.dim:
-            wanted = "a polyline, points (k, 2) and segments (s, 2)" if surface.dim == 2 else "triangles in 3D"
-            raise ParameterError(
-                f"{self.where}: a {tool.dim}D tool on a {surface.dim}D mesh; give {wanted} (ToolContact.from_arrays)"
+            wanted = (
+                "a polyline, points (k, 2) and segments (s, 2) (ToolContact.from_arrays) or a file of line segments "
+                "at z = 0" if surface.dim == 2 else "triangles in 3D (ToolContact.from_arrays or a file)"
             )
+            raise ParameterError(f"{self.where}: a {tool.dim}D tool on a {surface.dim}D mesh; give {wanted}")
         dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
         return MeshBarrier(
             self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
