@@ -510,7 +510,6 @@ def test_bad_pair_entries_are_one_line(shared_tmp, change, expected):
     [
         ('file = "plate.stl"', 'file = "missing.stl"', "contact[0].file: tool surface file not found: "),
         ('dhat = 1e-3', 'dhat = 1e-3\nfriction_epsilon = 0.0', "contact[0].friction_epsilon: must be > 0"),
-        ('dhat = 1e-3', 'dhat = 1e-3\nmotion = [0.0, 1.0]', "contact[0].motion: expected 3 numbers, got 2"),
         ('dhat = 1e-3', 'dhat = 1e-3\nscale = 0.0', "contact[0].scale: must be > 0"),
         ('boundaries = ["bottom"]', 'boundaries = []', "contact[0].boundaries: name at least one facet group"),
     ],
@@ -520,6 +519,25 @@ def test_bad_tool_entries_are_one_line(shared_tmp, old, new, expected):
         load_case(_write_tool(shared_tmp, TOOL.replace(old, new, 1)))
     message = str(info.value)
     assert expected in message and "\n" not in message
+
+
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        ("motion = [0.0, 1.0]", "contact[0].motion: 2 components (the mesh"),
+        ("offset = [0.0, 1.0]", "contact[0].offset: 2 components (the mesh"),
+        ("path = {times = [0.0, 1.0], points = [[0.0, 0.0], [0.0, 0.1]]}",
+         "contact[0].path.points: rows of 2 components (the mesh"),
+    ],
+)
+def test_tool_vectors_of_the_wrong_dimension_are_one_line(shared_tmp, change, expected):
+    """A tool's motion, offset and path take one entry per coordinate of the mesh (2 on a 2D mesh): checked with the
+    mesh, as a plane's point."""
+    case = load_case(_write_tool(shared_tmp, TOOL.replace("dhat = 1e-3", f"dhat = 1e-3\n{_braces(change)}", 1)))
+    with pytest.raises(CaseFileError) as info:
+        check_dimensions(case, build_domain(case, MPI.COMM_WORLD))
+    message = str(info.value)
+    assert expected in message and "has 3 displacement components" in message and "\n" not in message
 
 
 def test_unknown_surface_contact_group_lists_the_groups(shared_tmp):
@@ -637,8 +655,8 @@ def test_tool_path_equals_motion_and_slides_without_friction(shared_tmp):
     [
         ("path = {times = [0.0, 1.0], points = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]]}\nmotion = [0.0, 0.0, 0.1]",
          "contact[0].path: give either path or motion, not both"),
-        ("path = {times = [0.0, 1.0], points = [[0.0, 0.0], [0.0, 0.1]]}",
-         "contact[0].path.points: one [x, y, z] per time"),
+        ("path = {times = [0.0, 1.0], points = [[0.0, 0.0], [0.0, 0.0, 0.1]]}",
+         "contact[0].path.points: one [x, y, z] (or [x, y] on a 2D mesh) per time, got rows of [2, 3]"),
         ("path = {times = [1.0, 0.0], points = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]]}",
          "contact[0].path: times must increase strictly, got [1.0, 0.0]"),
         ("path = {times = [0.0, 1.0]}", "contact[0].path: missing required key 'points'"),

@@ -548,6 +548,50 @@ def test_pair_contact_case_on_a_2d_mesh(shared_tmp):
         meshio.write_points_cells(shared_tmp / "plate.stl", plate, [("triangle", np.array([[0, 1, 2]]))])
         path.write_text(tool)
     MPI.COMM_WORLD.Barrier()
-    with pytest.raises(CaseFileError, match=r"contact\[0\]: a tool contact needs a 3D mesh of tetrahedra or "
-                       r"hexahedra \(in 2D: self, pair and tie contacts\)"):
+    with pytest.raises(CaseFileError, match=r"contact\[0\]: .*a 3D tool on a 2D mesh; give a polyline"):
+        build(load_case(path, output=shared_tmp / "out"))
+
+
+TOOL_2D = PAIR_2D.replace(
+    'boundary = "lower_bottom"\nvalue = [0.0]', 'boundary = "lower_top"\nvalue = [0.0]'
+).replace('value = [-0.2]', 'value = [0.0]').replace(
+    'type = "pair"\nboundaries = ["lower_top", "upper_bottom"]',
+    'type = "tool"\nboundaries = ["lower_bottom"]\nfile = "plate.msh"\nmotion = [0.0, 0.1]',
+).replace('reactions = ["upper_top"]', 'reactions = ["lower_top"]')
+
+
+def test_polyline_tool_case_on_a_2d_mesh(shared_tmp):
+    """``type = "tool"`` on a 2D gmsh mesh with a polyline file (gmsh line cells): a flat plate 2e-3 below the lower
+    square (its top held in y) moves up 0.1. The tool's force = the reaction at the held top (1e-8) at every step and
+    the plane-strain P_yy of the compressed square to 0.1 %; every step ends apart (min distance > 0);
+    a motion of 3 components on the 2D mesh is refused in one line."""
+    import meshio
+
+    from hyperfem.app import build, load_case
+    from hyperfem.app.casefile import CaseFileError
+
+    below = -1.0 - 2e-3
+    path = shared_tmp / "tool_square.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        _write_squares_msh(shared_tmp / "squares.msh")
+        meshio.write_points_cells(shared_tmp / "plate.msh", np.array([[-1.0, below, 0.0], [3.0, below, 0.0]]),
+                                  [("line", np.array([[0, 1]]))], file_format="gmsh22", binary=False)
+        path.write_text(TOOL_2D)
+    MPI.COMM_WORLD.Barrier()
+    built = build(load_case(path, output=shared_tmp / "out"))
+    summary = built.simulation.run()
+    rows = summary["rows"]
+    assert summary["completed"] and summary["steps"] == 4
+    for row in rows[1:]:
+        assert row["contact_force"][1] == pytest.approx(-row["reaction_lower_top_Fy"], rel=1e-8)
+        assert row["contact_min_distance"] > 0.0
+    barrier = built.variables["contact"]
+    x = barrier.surface.positions(built.variables["problem"].u.x.array)
+    stretch = -(x[:, 1].mean() if len(x) else 0.0)  # the bottom's height; the top stays at y = 0
+    assert barrier.force()[1] == pytest.approx(-_plane_strain_pyy(stretch), rel=1e-3)
+    assert 0.0 < x[:, 1].mean() - (below + 0.1) < 1e-3  # the bottom rests on the plate, within dhat
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(TOOL_2D.replace("motion = [0.0, 0.1]", "motion = [0.0, 0.1, 0.0]"))
+    MPI.COMM_WORLD.Barrier()
+    with pytest.raises(CaseFileError, match=r"contact\[0\]\.motion: 3 components \(the mesh .* has 2 displacement"):
         build(load_case(path, output=shared_tmp / "out"))

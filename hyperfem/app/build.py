@@ -131,9 +131,16 @@ def check_dimensions(case: Case, domain: Domain) -> None:
         elif isinstance(load.value, tuple) and len(load.value) != gdim:
             fail(f"{load.key}.value", f"{len(load.value)} components")
     for contact in case.contacts:
-        if contact.boundaries is not None and gdim != 3 and not (gdim == 2 and contact.type in ("self", "pair", "tie")):
+        in_2d = ("self", "pair", "tie", "tool")
+        if contact.boundaries is not None and gdim != 3 and not (gdim == 2 and contact.type in in_2d):
             fail(contact.key, f"a {contact.type} contact needs a 3D mesh of tetrahedra or hexahedra"
-                 + (" (in 2D: self, pair and tie contacts)" if gdim == 2 else ""))
+                 + (" (in 2D: self, pair, tie and tool contacts)" if gdim == 2 else ""))
+        for key in ("motion", "offset"):
+            value = getattr(contact, key) if contact.type == "tool" else None
+            if value is not None and not callable(value) and len(value) != gdim:
+                fail(f"{contact.key}.{key}", f"{len(value)} components")
+        if contact.path is not None and len(contact.path.points[0]) != gdim:
+            fail(f"{contact.key}.path.points", f"rows of {len(contact.path.points[0])} components")
         name, where = ("center", contact.center) if contact.type == "sphere" else ("point", contact.point)
         if where is not None and len(where) != gdim:
             fail(f"{contact.key}.{name}", f"{len(where)} components")

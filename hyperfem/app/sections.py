@@ -560,14 +560,16 @@ CONTACTS = {
                           "the force output is the tool's force on the body"),
         "file": Key("string", required=True, example="spatula.stl",
                     help="the tool's triangulated surface (STL, OBJ, PLY, VTK/VTU or gmsh, read by meshio), "
-                    "relative to the case file"),
-        "motion": Key("vector", length=3, example=(0.0, 0.0, -0.3),
-                      help="translation of the tool in m at f = 1 (a moving tool); default none"),
+                    "relative to the case file; on a 2D mesh a polyline: a file of line segments at z = 0"),
+        "motion": Key("numbers", example=(0.0, 0.0, -0.3),
+                      help="translation of the tool in m at f = 1 (a moving tool; one entry per coordinate of the "
+                      "mesh); default none"),
         "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
         "path": Key("table", help="instead of motion and profile: the tool's translation through waypoints "
                     "(hf.loading.Waypoints: piecewise linear, held at its ends)"),
-        "offset": Key("vector", length=3, example=(0.0, 0.0, 1.0),
-                      help="translation applied once to the file's points in m (placing the tool); default none"),
+        "offset": Key("numbers", example=(0.0, 0.0, 1.0),
+                      help="translation applied once to the file's points in m (placing the tool; one entry per "
+                      "coordinate of the mesh); default none"),
         "scale": Key("number", above=0.0, default=1.0,
                      help="factor applied once to the file's points (before offset; 1e-3 for a file in mm)"),
         "rotation": _rotation_key("tool (center in the placed tool's coordinates, after scale and offset)"),
@@ -1490,8 +1492,10 @@ def _waypoints(values: Mapping, where: str) -> Waypoints:
     if not isinstance(values["path"], Mapping):
         raise CaseFileError(f"{where}: expected a table {{times, points}}, got {describe(values['path'])}")
     table = check_table(values["path"], WAYPOINTS, where, what="a path (waypoints)")
-    if any(len(row) != 3 for row in table["points"]):
-        raise CaseFileError(f"{where}.points: one [x, y, z] per time, got rows of {[len(r) for r in table['points']]}")
+    lengths = sorted({len(row) for row in table["points"]})
+    if lengths not in ([2], [3]):
+        raise CaseFileError(f"{where}.points: one [x, y, z] (or [x, y] on a 2D mesh) per time, got rows of "
+                            f"{[len(r) for r in table['points']]}")
     try:
         return Waypoints(table["times"], table["points"])
     except ParameterError as exc:
