@@ -56,7 +56,7 @@ def _watch(solver, contact) -> list[float]:
     return seen
 
 
-def _squares(comm, n_lower: int, n_upper: int, cell: str = "triangle", degree: int = 1) -> hf.Domain:
+def _squares(comm, n_lower: int, n_upper: int, cell: str = "triangle", degree: int = 1, gap: float = GAP) -> hf.Domain:
     """Two unit squares, ``n^2`` boxes each, one mesh (all cells read on rank 0); ``degree`` 2: curved-capable
     geometry is not needed, the P2/Q2 displacement lives on the affine mesh."""
     import basix.ufl
@@ -64,7 +64,7 @@ def _squares(comm, n_lower: int, n_upper: int, cell: str = "triangle", degree: i
 
     cell_type = dmesh.CellType.triangle if cell == "triangle" else dmesh.CellType.quadrilateral
     parts = []
-    for y0, n in ((-1.0, n_lower), (GAP, n_upper)):
+    for y0, n in ((-1.0, n_lower), (gap, n_upper)):
         corners = [np.array([0.0, y0]), np.array([1.0, y0 + 1.0])]
         block = dmesh.create_rectangle(MPI.COMM_SELF, corners, [n, n], cell_type=cell_type)
         parts.append((block.geometry.x[:, :2].copy(), np.asarray(block.geometry.dofmaps[0]).copy()))
@@ -76,7 +76,7 @@ def _squares(comm, n_lower: int, n_upper: int, cell: str = "triangle", degree: i
         x, cells = np.zeros((0, 2)), np.zeros((0, k), dtype=np.int64)
     element = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(2,)))
     mesh = dmesh.create_mesh(comm, cells, element, x)
-    at = {"lower_bottom": (1, -1.0), "lower_top": (1, 0.0), "upper_bottom": (1, GAP), "upper_top": (1, 1.0 + GAP),
+    at = {"lower_bottom": (1, -1.0), "lower_top": (1, 0.0), "upper_bottom": (1, gap), "upper_top": (1, 1.0 + gap),
           "x0": (0, 0.0)}
     groups = {name: (lambda x, k=k, v=v: np.isclose(x[k], v)) for name, (k, v) in at.items()}
     return hf.Domain.from_locators(mesh, groups, source=f"two {cell} squares")
@@ -138,6 +138,33 @@ def test_two_squares_one_rank_equals_two_ranks():
     one = comm.bcast(one, root=0)
     two = _stacked_state(comm)
     assert two[0] == pytest.approx(one[0], rel=1e-4) and 0.0 < two[1] < DHAT and 0.0 < one[1] < DHAT
+
+
+def test_a_body_driven_onto_another_from_afar_closes_in_the_steps_asked_for():
+    """The upper square 0.05 above the lower one (50 barrier widths), its top pushed down 0.25 in 4 steps: the step
+    that closes the gap starts from the collision-free part of the predictor's move (the rest of it crossed the
+    lower square), not from a refused start cut back (before: 9 refused attempts, 13 steps). The force through the
+    contact = the top reaction (1e-8) and the plane-strain P_yy (0.1 %) as when the squares start within reach."""
+    gap = 0.05
+    domain = _squares(MPI.COMM_WORLD, 4, 3, gap=gap)
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("lower_bottom", [0.0], components=[1]),
+        hf.PrescribedDisplacement("upper_top", [-0.2 - gap], components=[1]),
+    ]
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+    contact = SurfaceContact(["lower_top", "upper_bottom"], dhat=DHAT).bind(problem)
+    solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    steps = hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
+    assert [s.time for s in steps] == [0.25, 0.5, 0.75, 1.0]
+    reaction = ReactionForce(problem, "upper_top")()
+    assert contact.force(group=0)[1] == pytest.approx(reaction[1], rel=1e-8)
+    x = contact.surface.positions(problem.u.x.array)
+    lower, upper = x[contact.surface.group == 0, 1], x[contact.surface.group == 1, 1]
+    stretch = (2.0 + gap - 0.2 - gap - (upper.mean() - lower.mean())) / 2.0
+    assert -reaction[1] == pytest.approx(-_plane_strain_pyy(stretch), rel=1e-3)
+    assert min(iterates) > 0.0 and not contact.intersecting()
 
 
 @pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])

@@ -755,11 +755,19 @@ class NewtonSolver:
             refusal = self.external.sweep_refusal()
         if refusal and carried is None and self.external and self.predictor:
             # A prescribed surface pushed into a body it touches: carry the touched nodes with it, predict again.
+            guess = self.problem.u.x.array.copy()
             pushed = self.external.carry_by_supports()
             if pushed is not None:
                 predicted = self._predict(pushed) or predicted
                 self._apply_dirichlet()
                 refusal = self._start_refusal() or self.external.sweep_refusal()
+            else:
+                self.problem.u.x.array[:] = guess
+        if refusal and self.external and self.external.pull_back():
+            # The prediction passes through a surface (a body driven onto another from beyond the barrier's
+            # reach): keep its collision-free part, the Dirichlet values in full (Newton closes the rest).
+            self._apply_dirichlet()
+            refusal = self._start_refusal() or self.external.sweep_refusal()
         solved = not refusal
         reason, message = (self._run_snes(), "") if solved else (_DOMAIN, refusal)
         self._forcing.restore()
