@@ -209,6 +209,13 @@ Every pair took the same Newton iterations (4; P5 at 67k: 5 and 4). The
 crossovers lie near 16k (P3) and between 36k and 67k (P4); P5 stays on LU
 beyond the sizes measured (at 67k also 57.6 / 49.9 s in a first run), so
 its 150k is a guess that keeps the LU's memory (about 5 GB) inside a laptop.
+On 2 ranks (``mpiexec -n 2 python benchmarks/linear_degree.py``,
+``results/linear_degree_2ranks_s32.jsonl``) CG + GAMG / MUMPS: P3 1.45 /
+1.91 s at 16.1k and 3.36 / 7.43 s at 45.1k, P4 3.37 / 3.76 s at 20.4k and
+6.30 / 7.00 s at 35.8k, P5 19.9 / 13.2 s at 38.2k: the crossovers lie lower
+there, as for P1. The thresholds do not depend on the number of ranks (a
+problem takes the same path on any number of them; see
+:data:`DIRECT_THRESHOLD`).
 The thresholds before the BAIJ tangent and lagged hierarchy were 40k (P3)
 and 150k (P4 and up), when AMG took 30 s on the 35.8k P4 bend against 17 s
 for MUMPS. A P5 bend on ``beam_h1`` had gone from 39 s (MUMPS, before the
