@@ -545,21 +545,31 @@ def _write_squares_msh(path) -> None:
         gmsh.finalize()
 
 
+def _run_squares_case(folder, name: str, text: str, extra=None):
+    """Write the two squares' mesh, ``extra(folder)``'s files and the case ``text`` (rank 0); build and run the case
+    (4 steps): the built objects, the case file and the summary's rows."""
+    from hyperfem.app import build, load_case
+
+    path = folder / name
+    if MPI.COMM_WORLD.rank == 0:
+        _write_squares_msh(folder / "squares.msh")
+        if extra is not None:
+            extra(folder)
+        path.write_text(text)
+    MPI.COMM_WORLD.Barrier()
+    built = build(load_case(path, output=folder / "out"))
+    summary = built.simulation.run()
+    assert summary["completed"] and summary["steps"] == 4
+    return built, path, summary["rows"]
+
+
 def test_pair_contact_case_on_a_2d_mesh(shared_tmp):
     """``type = "pair"`` on a 2D gmsh mesh of triangles: the force on lower_top = the top reaction (1e-8) at every
     step and the plane-strain P_yy to 0.1 %; a tool contact on a 2D mesh is refused in one line."""
     from hyperfem.app import build, load_case
     from hyperfem.app.casefile import CaseFileError
 
-    path = shared_tmp / "two_squares.toml"
-    if MPI.COMM_WORLD.rank == 0:
-        _write_squares_msh(shared_tmp / "squares.msh")
-        path.write_text(PAIR_2D)
-    MPI.COMM_WORLD.Barrier()
-    built = build(load_case(path, output=shared_tmp / "out"))
-    summary = built.simulation.run()
-    rows = summary["rows"]
-    assert summary["completed"] and summary["steps"] == 4
+    built, path, rows = _run_squares_case(shared_tmp, "two_squares.toml", PAIR_2D)
     for row in rows[1:]:
         assert row["contact_force"][1] == pytest.approx(row["reaction_upper_top_Fy"], rel=1e-8)
     barrier = built.variables["contact"]
@@ -598,17 +608,12 @@ def test_polyline_tool_case_on_a_2d_mesh(shared_tmp):
     from hyperfem.app.casefile import CaseFileError
 
     below = -1.0 - 2e-3
-    path = shared_tmp / "tool_square.toml"
-    if MPI.COMM_WORLD.rank == 0:
-        _write_squares_msh(shared_tmp / "squares.msh")
-        meshio.write_points_cells(shared_tmp / "plate.msh", np.array([[-1.0, below, 0.0], [3.0, below, 0.0]]),
+
+    def plate(folder):
+        meshio.write_points_cells(folder / "plate.msh", np.array([[-1.0, below, 0.0], [3.0, below, 0.0]]),
                                   [("line", np.array([[0, 1]]))], file_format="gmsh22", binary=False)
-        path.write_text(TOOL_2D)
-    MPI.COMM_WORLD.Barrier()
-    built = build(load_case(path, output=shared_tmp / "out"))
-    summary = built.simulation.run()
-    rows = summary["rows"]
-    assert summary["completed"] and summary["steps"] == 4
+
+    built, path, rows = _run_squares_case(shared_tmp, "tool_square.toml", TOOL_2D, plate)
     for row in rows[1:]:
         assert row["contact_force"][1] == pytest.approx(-row["reaction_lower_top_Fy"], rel=1e-8)
         assert row["contact_min_distance"] > 0.0
