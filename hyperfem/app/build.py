@@ -137,7 +137,7 @@ def check_dimensions(case: Case, domain: Domain) -> None:
                  + (" (in 2D: self, pair, tie and tool contacts)" if gdim == 2 else ""))
         for key in ("motion", "offset"):
             value = getattr(contact, key) if contact.type == "tool" else None
-            if value is not None and not callable(value) and len(value) != gdim:
+            if value is not None and len(value) != gdim:
                 fail(f"{contact.key}.{key}", f"{len(value)} components")
         if contact.path is not None and len(contact.path.points[0]) != gdim:
             fail(f"{contact.key}.path.points", f"rows of {len(contact.path.points[0])} components")

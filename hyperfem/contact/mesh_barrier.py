@@ -677,7 +677,8 @@ class MeshBarrier:
         x = self.surface.positions(state)
         f = -g.reshape(-1, self.dim)[: self.surface.size]
         if group is not None:
-            x, f = x[self.surface.group == group], f[self.surface.group == group]
+            mine = self.surface.group == group
+            x, f = x[mine], f[mine]
         if self.dim == 2:
             return np.array([0.0, 0.0, float((x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0]).sum())])
         return np.cross(x, f).sum(axis=0)
