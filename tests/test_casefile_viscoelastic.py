@@ -32,7 +32,6 @@ from hyperfem.app.plan import checkpoint_folder
 from hyperfem.materials import Viscoelastic
 from hyperfem.simulation import Output
 from hyperfem.simulation.measures import CellFunctions, cauchy_stress
-from hyperfem.solver.linear import pc_setup_seconds
 
 from case_texts import ROOT
 
@@ -161,7 +160,6 @@ def test_one_rank_equals_two_ranks(shared_tmp):
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()  # PETSc's log starts on every rank (collective), not in rank 0's first solve
     one = _rows(build(_case(shared_tmp / "one", *SHORT), MPI.COMM_SELF).simulation.run()) if comm.rank == 0 else None
     t1, P1 = comm.bcast(one, root=0)
     t2, P2 = _rows(build(_case(shared_tmp / "two", *SHORT), comm).simulation.run())

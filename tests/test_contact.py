@@ -42,7 +42,6 @@ from hyperfem.loading import Ramp  # noqa: E402
 from hyperfem.simulation import Recorder, Simulation  # noqa: E402
 from hyperfem.simulation.measures import Reaction  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
-from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
 DHAT = 1e-3
@@ -272,7 +271,6 @@ def test_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()  # starts PETSc's log, a collective call: on every rank before the 1-rank solve on rank 0
     one = _force_and_norm(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     two = _force_and_norm(comm)
@@ -394,7 +392,6 @@ def test_dynamic_drop_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()  # a collective call: on every rank before the 1-rank solve on rank 0
     one = _dropped_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     assert _dropped_state(comm) == pytest.approx(one, rel=1e-10)
@@ -539,7 +536,6 @@ def test_sphere_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()  # a collective call: on every rank before the 1-rank solve on rank 0
     one = _indentation_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     assert _indentation_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-14)
@@ -767,7 +763,6 @@ def test_friction_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()
     one = _stick_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     two = _stick_state(comm)

@@ -36,7 +36,6 @@ from hyperfem.contact import SurfaceContact, TieContact, ToolContact  # noqa: E4
 from hyperfem.simulation import Checkpoint, Recorder, Simulation  # noqa: E402
 from hyperfem.simulation.outputs import Output  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
-from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
 from test_contact_2d import (  # noqa: E402
     DHAT,
     GAP,
@@ -261,7 +260,6 @@ def test_generalized_alpha_restart_in_2d_equals_the_uninterrupted_run(kind, shar
     its normal force 0.04 % off, the pair's 5.6 % and 0.008 % (measured); the tie's frozen force is a function of
     :math:`u_n` alone, the same either way."""
     comm = MPI.COMM_WORLD
-    pc_setup_seconds()  # its PETSc log starts collectively, before rank 0 solves alone
     reference = _restart_run(kind, comm, shared_tmp / "full")
     if comm.rank == 0:
         with pytest.raises(KeyboardInterrupt):
@@ -333,7 +331,6 @@ def test_2d_dynamics_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()
     one = comm.bcast(_runs(MPI.COMM_SELF) if comm.rank == 0 else None, root=0)
     two = _runs(comm)
     np.testing.assert_allclose(two, one, rtol=1e-10)

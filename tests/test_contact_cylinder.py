@@ -19,7 +19,6 @@ import hyperfem as hf  # noqa: E402
 from hyperfem.contact import CylinderContact, SphereCollisionFilter, sphere_step_fraction  # noqa: E402
 from hyperfem.errors import ParameterError  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
-from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
 from test_contact import TIGHT, _block, _watch  # noqa: E402
 
 RADIUS = 2.0
@@ -106,7 +105,6 @@ def test_cylinder_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()
 
     def state(c):
         problem, barrier, _ = _pressed_on_roller(c)

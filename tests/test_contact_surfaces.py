@@ -25,7 +25,6 @@ from hyperfem.contact.mesh_barrier import ray_hits  # noqa: E402
 from hyperfem.contact.shapes import icosphere  # noqa: E402
 from hyperfem.errors import MeshError, ParameterError, UnknownGroupError  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
-from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
 from test_contact import _cube  # noqa: E402  (the cube with bottom, top, x0, y0)
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
@@ -102,7 +101,6 @@ def test_two_blocks_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()
     one = _stacked_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     two = _stacked_state(comm)

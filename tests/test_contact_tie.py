@@ -25,7 +25,6 @@ from dolfinx import mesh as dmesh
 from hyperfem.contact import TieContact
 from hyperfem.errors import ParameterError, UnknownGroupError
 from hyperfem.simulation.reactions import ReactionForce
-from hyperfem.solver.linear import pc_setup_seconds
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-7}  # the penalty's round-off floor of |r| is ~3e-8 here
@@ -134,7 +133,6 @@ def test_tie_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()
     one = _tension_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     assert _tension_state(comm) == pytest.approx(one, rel=1e-10)

@@ -281,3 +281,18 @@ def test_mixed_fieldsplit_dynamic_step():
         results.append(problem.u.x.array.copy())
     scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
     np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
+
+
+def test_pc_setup_timing_never_waits_for_ranks_outside_the_solve(monkeypatch):
+    """Starting PETSc's log is collective over PETSC_COMM_WORLD: a first solve on rank 0 alone (``COMM_SELF``, the
+    other rank elsewhere) must not start it (it hung there); it reads 0 until a call on all ranks starts it."""
+    from hyperfem.solver import linear
+
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("needs a rank outside COMM_SELF: mpiexec -n 2")
+    monkeypatch.setattr(linear, "_PC_SETUP_EVENTS", None)
+    if comm.rank == 0:
+        assert linear.pc_setup_seconds(MPI.COMM_SELF) == 0.0 and linear._PC_SETUP_EVENTS is None
+    comm.Barrier()
+    assert linear.pc_setup_seconds(comm) >= 0.0 and linear._PC_SETUP_EVENTS is not None

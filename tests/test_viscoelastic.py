@@ -62,7 +62,6 @@ from hyperfem.materials.viscoelastic import PronySeries, Viscoelastic
 from hyperfem.problem import MixedHyperelasticProblem, SplitEnergy
 from hyperfem.simulation import Checkpoint, Output, Reactions, Simulation
 from hyperfem.simulation.reactions import ReactionForce
-from hyperfem.solver.linear import pc_setup_seconds
 from hyperfem.solver.stepping import QuasiStaticStage, StepPolicy, run_steps
 
 MU, K = 1.0, 1e4
@@ -465,7 +464,6 @@ def test_one_rank_equals_two_ranks(formulation):
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()  # PETSc's log starts on every rank (collective), not in rank 0's first solve
     one = _gripped_run(MPI.COMM_SELF, formulation) if comm.rank == 0 else None
     P1, norms1 = comm.bcast(one, root=0)
     P2, norms2 = _gripped_run(comm, formulation)

@@ -263,7 +263,7 @@ _counter = itertools.count()
 _PC_SETUP_EVENTS: tuple | None = None
 
 
-def pc_setup_seconds() -> float:
+def pc_setup_seconds(comm: MPI.Comm | None = None) -> float:
     """Seconds this process has spent setting up preconditioners (factorisations, AMG hierarchies).
 
     The sum of PETSc's ``PCSetUp`` (factorisations, AMG of a plain KSP) and
@@ -272,9 +272,22 @@ def pc_setup_seconds() -> float:
     handler runs: the first call starts it (``PETSc.Log.begin()``, once per
     process, nothing else is changed), so take a reading before the work to
     be timed and subtract.
+
+    Starting the handler is collective over ``PETSC_COMM_WORLD`` (it
+    duplicates that communicator), so it is started only from a call on a
+    communicator that spans it: the first solve on a sub-communicator (one
+    rank of several running alone on ``COMM_SELF``) must not wait for the
+    other ranks. Until a call on all ranks has started it, this returns 0.
+
+    Args:
+        comm: The communicator of the calling solve (collective over it);
+            ``None``: the caller vouches that every rank of
+            ``PETSC_COMM_WORLD`` calls.
     """
     global _PC_SETUP_EVENTS
     if _PC_SETUP_EVENTS is None:
+        if comm is not None and MPI.Comm.Compare(comm, PETSc.COMM_WORLD.tompi4py()) not in (MPI.IDENT, MPI.CONGRUENT):
+            return 0.0
         PETSc.Log.begin()
         _PC_SETUP_EVENTS = (PETSc.Log.Event("PCSetUp"), PETSc.Log.Event("PCSetUpOnBlocks"))
     return float(sum(event.getPerfInfo()["time"] for event in _PC_SETUP_EVENTS))

@@ -161,7 +161,8 @@ class SolveRecord:
             why a step filter found no admissible step.
         ksp_reason: Converged reason of the last linear solve (negative: failed).
         linear_solver: KSP and PC types of the tangent solves, e.g. ``cg+gamg``.
-        pc_setup_time: Seconds spent setting up the preconditioner (factorisation, AMG hierarchy).
+        pc_setup_time: Seconds spent setting up the preconditioner (factorisation, AMG hierarchy); 0 before
+            PETSc's log could be started (:func:`~hyperfem.solver.linear.pc_setup_seconds`).
     """
 
     converged: bool
@@ -806,7 +807,7 @@ class NewtonSolver:
             self._objective.reset()
         self.step_filters.min_step_fraction = 1.0
         self.external.update(self.problem.time)
-        return self.inversion_cutbacks, self.roundoff_accepts, self.filtered_steps, pc_setup_seconds()
+        return self.inversion_cutbacks, self.roundoff_accepts, self.filtered_steps, pc_setup_seconds(self.comm)
 
     def _predict(self, carried: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
         """Run the boundary-increment predictor (with the nodes an obstacle carries); whether it moved the state."""
@@ -913,7 +914,7 @@ class NewtonSolver:
             message=message,
             ksp_reason=ksp_reason,
             linear_solver=self.linear_solver_name,
-            pc_setup_time=float(self.comm.allreduce(pc_setup_seconds() - setup0, op=MPI.MAX)),
+            pc_setup_time=float(self.comm.allreduce(pc_setup_seconds(self.comm) - setup0, op=MPI.MAX)),
         )
 
     def _nan_message(self) -> str:
