@@ -33,7 +33,6 @@ from hyperfem.contact.mesh_barrier import ray_hits  # noqa: E402
 from hyperfem.contact.surface import global_dofs  # noqa: E402
 from hyperfem.errors import ParameterError  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
-from hyperfem.solver.linear import pc_setup_seconds  # noqa: E402
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-12}
@@ -133,7 +132,6 @@ def test_two_squares_one_rank_equals_two_ranks():
     comm = MPI.COMM_WORLD
     if comm.size < 2:
         pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    pc_setup_seconds()
     one = _stacked_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     two = _stacked_state(comm)
@@ -602,18 +600,11 @@ def test_polyline_tool_case_on_a_2d_mesh(shared_tmp):
     square (its top held in y) moves up 0.1. The tool's force = the reaction at the held top (1e-8) at every step and
     the plane-strain P_yy of the compressed square to 0.1 %; every step ends apart (min distance > 0);
     a motion of 3 components on the 2D mesh is refused in one line."""
-    import meshio
-
     from hyperfem.app import build, load_case
     from hyperfem.app.casefile import CaseFileError
 
     below = -1.0 - 2e-3
-
-    def plate(folder):
-        meshio.write_points_cells(folder / "plate.msh", np.array([[-1.0, below, 0.0], [3.0, below, 0.0]]),
-                                  [("line", np.array([[0, 1]]))], file_format="gmsh22", binary=False)
-
-    built, path, rows = _run_squares_case(shared_tmp, "tool_square.toml", TOOL_2D, plate)
+    built, path, rows = _run_squares_case(shared_tmp, "tool_square.toml", TOOL_2D, _write_plate_polyline)
     for row in rows[1:]:
         assert row["contact_force"][1] == pytest.approx(-row["reaction_lower_top_Fy"], rel=1e-8)
         assert row["contact_min_distance"] > 0.0
@@ -627,3 +618,36 @@ def test_polyline_tool_case_on_a_2d_mesh(shared_tmp):
     MPI.COMM_WORLD.Barrier()
     with pytest.raises(CaseFileError, match=r"contact\[0\]\.motion: 3 components \(the mesh .* has 2 displacement"):
         build(load_case(path, output=shared_tmp / "out"))
+
+
+def _write_plate_polyline(folder):
+    """A flat gmsh polyline 2e-3 below the lower square (the tool of :data:`TOOL_2D`)."""
+    import meshio
+
+    below = -1.0 - 2e-3
+    meshio.write_points_cells(folder / "plate.msh", np.array([[-1.0, below, 0.0], [3.0, below, 0.0]]),
+                              [("line", np.array([[0, 1]]))], file_format="gmsh22", binary=False)
+
+
+@pytest.mark.parametrize("kind", ["pair", "tool"])
+def test_2d_contact_cases_one_rank_equal_two_ranks(shared_tmp, kind):
+    """The pair and polyline-tool cases on the ranks of ``mpiexec -n 2``: every step's contact force, smallest
+    distance and reaction equal a 1-rank run's to 1e-10."""
+    from hyperfem.app import build, load_case
+
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    text, extra, reaction = {"pair": (PAIR_2D, None, "reaction_upper_top_Fy"),
+                             "tool": (TOOL_2D, _write_plate_polyline, "reaction_lower_top_Fy")}[kind]
+    _, path, rows = _run_squares_case(shared_tmp, f"{kind}_ranks.toml", text, extra)
+    one = None
+    if comm.rank == 0:
+        summary = build(load_case(path, output=shared_tmp / "out_one"), MPI.COMM_SELF).simulation.run()
+        one = summary["rows"]
+    one = comm.bcast(one, root=0)
+    assert len(one) == len(rows) == 5
+    for a, b in zip(rows[1:], one[1:], strict=True):
+        assert a["contact_force"] == pytest.approx(b["contact_force"], rel=1e-10, abs=1e-14)
+        assert a[reaction] == pytest.approx(b[reaction], rel=1e-10)
+        assert a["contact_min_distance"] == pytest.approx(b["contact_min_distance"], rel=1e-8)

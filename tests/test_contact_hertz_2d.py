@@ -40,9 +40,8 @@ def _crowded(t: np.ndarray, near: float = 0.2) -> np.ndarray:
     return np.where(t < 0.5, 2.0 * near * t, near + (t - 0.5) * 2.0 * (1.0 - near))
 
 
-def _indent(n: int) -> dict:
+def _indent(n: int, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
     """The disc pressed ``DEPTH`` into the half square of ``n x n`` cells: half-width, force, reaction, gap."""
-    comm = MPI.COMM_WORLD
     mesh = dmesh.create_unit_square(comm, n, n)
     x = mesh.geometry.x
     x[:, 0], x[:, 1] = _crowded(x[:, 0]), 1.0 - _crowded(1.0 - x[:, 1])
@@ -81,3 +80,15 @@ def test_cylinder_contact_half_width_converges_to_hertz():
         assert run["gap"] > 0.0
     assert fine["b"] / fine["hertz"] == pytest.approx(1.0, abs=0.03)
     assert abs(fine["b"] / fine["hertz"] - 1.0) < abs(coarse["b"] / coarse["hertz"] - 1.0)
+
+
+def test_cylinder_contact_one_rank_equals_two_ranks():
+    """Half-width, force, reaction and gap (16 cells per side) on the ranks of ``mpiexec -n 2`` equal 1 rank's to
+    1e-10."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    one = comm.bcast(_indent(16, MPI.COMM_SELF) if comm.rank == 0 else None, root=0)
+    many = _indent(16)
+    for key in ("b", "force", "reaction", "gap"):
+        assert many[key] == pytest.approx(one[key], rel=1e-10), key
