@@ -117,3 +117,44 @@ def test_a_user_factorisation_is_not_lagged_like_the_amg_it_replaces():
         problem.set_time(1.0)
         counts.append(solver.solve(raise_on_failure=True).iterations)
     assert counts[0] <= counts[1] + 1  # lagged by 5 it took 4x as many on the benchmark's bend
+
+
+
+STALE_EXACT = {"ksp_type": "cg", "pc_type": "lu", "ksp_max_it": 2, "snes_lag_preconditioner": 100, "snes_rtol": 1e-10}
+"""CG with an exact factorisation that is lagged: built at the first Newton iteration, too old at the next ones."""
+
+
+def _bend(options: dict, blocked: bool = False) -> tuple[hf.NewtonSolver, hf.SolveRecord, np.ndarray]:
+    """The cantilever bend on ``beam_h2.msh``, full load in one Newton solve (the cube's uniaxial stretch is
+    homogeneous: one CG iteration solves it on any tangent); ``blocked``: on the iterative path's blocked tangent,
+    whose AIJ copy preconditions."""
+    from pathlib import Path
+
+    from hyperfem.cases import CantileverSpec, bend_load
+    from hyperfem.solver.linear import choose_linear_solver
+
+    domain = hf.read_mesh(Path(__file__).resolve().parent.parent / "meshes" / "beam_h2.msh")
+    params = CantileverSpec().lame
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params),
+                                     bcs=[hf.Clamp("clamped")], loads=[bend_load()])
+    problem.set_time(1.0)
+    linear = choose_linear_solver(problem, threshold=0) if blocked else None
+    solver = hf.NewtonSolver(problem, options, linear_solver=linear)
+    record = solver.solve()
+    return solver, record, problem.u.x.array[: problem.u.function_space.dofmap.index_map.size_local * 3].copy()
+
+
+@pytest.mark.parametrize(("limit", "blocked"), [(0, False), (newton.DIRECT_FALLBACK_LIMIT, False), (0, True)])
+def test_a_lagged_preconditioner_that_fails_is_rebuilt_before_any_fallback(monkeypatch, limit, blocked):
+    """A Krylov solve that fails with a lagged preconditioner (``snes_lag_preconditioner``, here an LU of the first
+    tangent: 2 CG iterations do not reach the tolerance on the later ones) is solved again with the preconditioner
+    rebuilt on the current tangent, not by MUMPS: the LU answer, no fallback, with or without the fallback allowed.
+    On the blocked tangent the rebuilt preconditioner reads the AIJ copy of the current tangent (a stale copy
+    failed again)."""
+    monkeypatch.setattr(newton, "DIRECT_FALLBACK_LIMIT", limit)
+    _, reference, u_lu = _bend({"snes_rtol": 1e-10})
+    options = {**STALE_EXACT, "pc_factor_mat_solver_type": "mumps"}
+    solver, record, u = _bend(options, blocked)
+    assert reference.converged and record.converged, record.message
+    assert solver.preconditioner_rebuilds > 0 and solver.direct_fallbacks == 0
+    assert np.abs(u - u_lu).max() < 1e-8 * np.abs(u_lu).max()
