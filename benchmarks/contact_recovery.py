@@ -23,6 +23,12 @@ rebuild of a failed lagged preconditioner (commit a7d409f), same 16 steps and en
 * the demo itself, ``mpiexec -n 2 python demos/surgery.py --n 30`` (90.8k unknowns):
   14 min 51 s (stop 31) -> 10 min 14 s, the same 19 steps and printed results.
 
+The predictor's lifts failed on the same lagged hierarchy (12 of the 54 MUMPS solves at ``--n 16``
+before); rebuilt the same way (``BoundaryPredictor._solve``): ``--n 16`` serial 65.4 s, 12 steps
+instead of 16, no LU lift (5 rebuilt), 10 Newton fallbacks; the end force differs by 1.7 % in x
+(another step sequence, on which the lagged friction depends; ``snes_lag_preconditioner 1`` gives
+the same 12 steps and force to 1e-9).
+
 The remaining fallbacks are tangents that are indefinite themselves
 (``KSP_DIVERGED_INDEFINITE_MAT`` after the projection: strongly compressed cells under
 the probe). The ``project`` recoveries (an exact barrier tangent that stopped CG or did
@@ -96,6 +102,8 @@ def main() -> None:
     row = {
         "n": args.n, "ranks": comm.size, "time": elapsed, "steps": result["steps"],
         "direct_fallbacks": solver.direct_fallbacks, "preconditioner_rebuilds": solver.preconditioner_rebuilds,
+        "lift_fallbacks": solver._boundary_predictor.direct_fallbacks,
+        "lift_rebuilds": solver._boundary_predictor.preconditioner_rebuilds,
         "force_end": result["force"][-1], "min_distance": result["min_distance"],
         "intersecting": result["intersecting"], "recoveries": dict(CountingSolver.reasons),
         "recovery_seconds": dict(CountingSolver.seconds),

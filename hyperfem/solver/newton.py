@@ -381,7 +381,7 @@ class NewtonSolver:
         # A failed linear solve goes on to the pre-check, which recovers a direction or ends the solve.
         self.snes.setMaxLinearSolveFailures(1_000_000)
         self.predictor = bool(predictor)
-        self._boundary_predictor = BoundaryPredictor(problem, self._nlp)
+        self._boundary_predictor = BoundaryPredictor(problem, self._nlp, lagged=self._lagged)
 
         def test(snes_: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
             return me()._guarded(me()._converged, snes_, it, norms)

@@ -26,6 +26,8 @@ from hyperfem.solver.state import assign_state
 
 __all__ = ["BoundaryPredictor"]
 
+_INDEFINITE_MATRIX = int(PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_MAT)
+
 MAX_PREDICTOR_HALVINGS = 8
 """The predicted increment is halved at most this often to keep :math:`J > J_\\min`; then it is dropped."""
 
@@ -36,13 +38,20 @@ class BoundaryPredictor:
     Args:
         problem: The problem (its unknown and Dirichlet conditions).
         nlp: The solver's ``dolfinx.fem.petsc.NonlinearProblem`` (tangent form and matrix).
+        lagged: Whether the solver lags its preconditioner (``snes_lag_preconditioner``): a lift whose Krylov
+            solve fails is then solved again with the preconditioner rebuilt, before the LU fallback.
     """
 
-    def __init__(self, problem: SolidProblem, nlp: fpetsc.NonlinearProblem):
+    def __init__(self, problem: SolidProblem, nlp: fpetsc.NonlinearProblem, lagged: bool = False):
         self.problem = problem
         self._nlp = nlp
         self._state = nlp.x.duplicate()
         self._rhs = nlp.b.duplicate()
+        self._lagged = lagged
+        self.preconditioner_rebuilds = 0
+        """Lifts solved again with the preconditioner rebuilt after a failed Krylov solve (:meth:`_solve`)."""
+        self.direct_fallbacks = 0
+        """Lifts solved by the LU fallback (:meth:`_direct_fallback`)."""
 
     def moved(self) -> bool:
         """Whether the Dirichlet values differ from the current state anywhere (collective)."""
@@ -135,6 +144,15 @@ class BoundaryPredictor:
         P = None if preconditioner is None else preconditioner(A)
         ksp.setOperators(A, A if P is None else P)
         ksp.solve(b, du)
+        reason = int(ksp.getConvergedReason())  # type: ignore[call-overload]  # petsc4py: an int
+        if reason <= 0 and self._lagged and reason != _INDEFINITE_MATRIX:
+            # The preconditioner as SNES left it, lagged (built on an older tangent, e.g. before an obstacle's
+            # barrier block entered it; the AMG's Chebyshev bounds no longer fit): build it anew on this tangent
+            # before any LU, as ``NewtonSolver._recover_direction`` does for a Newton direction.
+            ksp.getPC().reset()
+            ksp.setOperators(A, A if P is None else P)
+            ksp.solve(b, du)
+            self.preconditioner_rebuilds += 1
         if ksp.getConvergedReason() <= 0:  # type: ignore[operator]  # petsc4py: an int
             return self._direct_fallback(A, b, du)
         return bool(np.isfinite(du.norm()))
@@ -153,6 +171,7 @@ class BoundaryPredictor:
         if A.getSize()[0] > DIRECT_FALLBACK_LIMIT:
             return False
         reason = LinearSolver().solve(self.problem.domain.comm, A, b, du, kind="fallback")
+        self.direct_fallbacks += 1
         return reason > 0 and bool(np.isfinite(du.norm()))
 
     def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool]) -> bool:
