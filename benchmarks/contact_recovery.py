@@ -21,7 +21,8 @@ rebuild of a failed lagged preconditioner (commit a7d409f), same 16 steps and en
 * ``--n 24`` (47.8k unknowns), 2 ranks: 351 -> 291 s; fallbacks 60 -> 13 (52 rebuilds,
   0.28 s each against 1.45 s per fallback); ``MatLUFactorNum`` 87 -> 29 s.
 * the demo itself, ``mpiexec -n 2 python demos/surgery.py --n 30`` (90.8k unknowns):
-  14 min 51 s (stop 31) -> 10 min 14 s, the same 19 steps and printed results.
+  14 min 51 s (stop 31) -> 10 min 14 s (a7d409f) -> 9 min 45 s (db287dc, the lifts too), the same 19
+  steps and printed results.
 
 The predictor's lifts failed on the same lagged hierarchy (12 of the 54 MUMPS solves at ``--n 16``
 before); rebuilt the same way (``BoundaryPredictor._solve``): ``--n 16`` serial 65.4 s, 12 steps
