@@ -267,6 +267,43 @@ def test_mixed_fieldsplit_equals_direct(drive):
     np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
 
 
+def _mixed_block(cell: str):
+    """A nearly incompressible P2/P1/P1 block pulled down at its free end (tets, hexahedra, or triangles in 2D)."""
+    comm = MPI.COMM_WORLD
+    if cell == "triangle":
+        mesh = dmesh.create_rectangle(comm, [[-5.0, -2.0], [5.0, 2.0]], [8, 3], dmesh.CellType.triangle)
+    else:
+        box = [[-5.0, -2.0, -2.0], [5.0, 2.0, 2.0]]
+        mesh = dmesh.create_box(comm, box, [4, 2, 2], getattr(dmesh.CellType, cell))
+    domain = hf.Domain.from_locators(
+        mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
+    )
+    material = SplitEnergy(lambda F: 0.5 * MU * (isochoric_invariants(F)[0] - 3.0), BULK)
+    bcs = [hf.Clamp("clamped"), hf.PrescribedDisplacement("free_end", [-1.0], components=[1])]
+    return solid_problem(domain, material, bcs=bcs)
+
+
+def test_a_mixed_lift_that_fails_keeps_its_field_split():
+    """A failed Krylov lift on the lagged field split is solved again with the preconditioner rebuilt, not reset:
+    ``PC.reset()`` dropped the split's index sets and the next solve raised PETSc's "must have at least two
+    fields". Here every Krylov solve stops after one iteration, so the lift ends on LU, and Newton too."""
+    results = []
+    for threshold in (10**12, 0):
+        problem = _mixed_block("tetrahedron")
+        solver = hf.NewtonSolver(
+            problem, linear_solver=choose_linear_solver(problem, mixed_threshold=threshold),
+            petsc_options={"ksp_max_it": 1} if threshold == 0 else None,
+        )
+        problem.set_time(1.0)
+        solver.solve(raise_on_failure=True)
+        results.append(problem.u.x.array.copy())
+    predictor = solver._boundary_predictor
+    assert predictor.preconditioner_rebuilds == 1 and predictor.direct_fallbacks == 1
+    assert solver.snes.getKSP().getPC().getType() == "fieldsplit"
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
+
+
 def test_mixed_fieldsplit_dynamic_step():
     """A backward-Euler step of the mixed problem (mass in the displacement block) with the field split equals LU."""
     from hyperfem import dynamics as dyn
