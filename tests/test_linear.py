@@ -283,6 +283,57 @@ def _mixed_block(cell: str):
     return solid_problem(domain, material, bcs=bcs)
 
 
+@pytest.mark.parametrize("cell", ["tetrahedron", "hexahedron", "triangle"])
+def test_mixed_displacement_block_is_preconditioned_on_p1(cell):
+    """The split's displacement block: a two-level p-multigrid whose coarse level is the P1 displacement on the same
+    mesh (Galerkin operator in node blocks, rigid-body modes from the P1 coordinates); the solution is LU's."""
+    results = []
+    for threshold in (10**12, 0):
+        problem = _mixed_block(cell)
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, mixed_threshold=threshold))
+        problem.set_time(1.0)
+        rec = solver.solve(raise_on_failure=True)
+        results.append(problem.u.x.array.copy())
+    assert rec.linear_solver == "fgmres+fieldsplit"
+    mesh = problem.domain.mesh
+    gdim = mesh.geometry.dim
+    block = solver.snes.getKSP().getPC().getFieldSplitSubKSP()[0]
+    pc = block.getPC()
+    assert pc.getType() == "mg" and pc.getMGLevels() == 2
+    coarse = pc.getMGCoarseSolve()
+    assert coarse.getPC().getType() == "gamg"
+    K1 = coarse.getOperators()[0]
+    vertices = mesh.topology.index_map(0).size_global
+    assert K1.getSize() == (gdim * vertices, gdim * vertices) and K1.getBlockSize() == gdim
+    P = pc.getMGInterpolation(1)
+    assert P.getSize() == (block.getOperators()[0].getSize()[0], gdim * vertices)
+    # Pi interpolates P1 exactly: a rigid translation on the coarse level is one on the fine level
+    ones = P.createVecRight()
+    ones.set(1.0)
+    assert P.getSize()[0] - (P * ones).sum() == pytest.approx(0.0, abs=1e-9 * P.getSize()[0])
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
+
+
+def test_mixed_displacement_block_takes_a_users_preconditioner():
+    """Options that replace the p-multigrid (GAMG on the P2 block directly: only its type, or the split's earlier
+    settings :data:`GAMG_U`) are taken as they are, same solution."""
+    from hyperfem.solver.pmultigrid import GAMG_U
+
+    results = []
+    for kind, options in (("mg", {}), ("gamg", {"fieldsplit_u_pc_type": "gamg"}), ("gamg", GAMG_U)):
+        problem = _mixed_block("tetrahedron")
+        linear = choose_linear_solver(problem, mixed_threshold=0)
+        solver = hf.NewtonSolver(problem, linear_solver=linear, petsc_options=options)
+        problem.set_time(1.0)
+        solver.solve(raise_on_failure=True)
+        assert solver.snes.getKSP().getPC().getFieldSplitSubKSP()[0].getPC().getType() == kind
+        results.append(problem.u.x.array.copy())
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    for other in results[1:]:
+        np.testing.assert_allclose(other, results[0], rtol=0, atol=1e-8 * scale)
+
+
 def test_a_mixed_lift_that_fails_keeps_its_field_split():
     """A failed Krylov lift on the lagged field split is solved again with the preconditioner rebuilt, not reset:
     ``PC.reset()`` dropped the split's index sets and the next solve raised PETSc's "must have at least two

@@ -19,8 +19,9 @@ solver overrides it):
   near-nullspace (6 in 3D, 3 in 2D; :func:`rigid_body_modes`), so its coarse
   spaces represent the motions the tangent barely resists;
 * above it, for the mixed problem: FGMRES with a Schur-complement
-  field split (:data:`MIXED_ITERATIVE`): the displacement block by one GAMG
-  V-cycle (rigid-body near-nullspace attached to its index set), the
+  field split (:data:`MIXED_ITERATIVE`): the displacement block by one
+  V-cycle of a two-level p-multigrid (P2 smoothed, GAMG with the rigid-body
+  modes on the Galerkin P1 operator; :mod:`hyperfem.solver.pmultigrid`), the
   :math:`(p, \theta)` block by LU of its Schur approximation — the tangent's
   own :math:`(p,\theta)` block with the pressure mass matrix over the shear
   modulus in place of :math:`-BK_{uu}^{-1}B^T` (see
@@ -62,6 +63,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepState
+from hyperfem.solver.pmultigrid import P_MULTIGRID_U, PMultigridHook
 
 __all__ = [
     "DIRECT",
@@ -129,12 +131,7 @@ MIXED_ITERATIVE: dict[str, object] = {
     "pc_fieldsplit_type": "schur",
     "pc_fieldsplit_schur_fact_type": "upper",
     "pc_fieldsplit_schur_precondition": "a11",
-    "fieldsplit_u_ksp_type": "preonly",
-    "fieldsplit_u_pc_type": "gamg",
-    "fieldsplit_u_pc_gamg_threshold": 0.02,
-    "fieldsplit_u_mg_levels_ksp_type": "chebyshev",
-    "fieldsplit_u_mg_levels_pc_type": "jacobi",
-    "fieldsplit_u_pc_gamg_reuse_interpolation": True,
+    **P_MULTIGRID_U,
     "fieldsplit_p_ksp_type": "preonly",
     "fieldsplit_p_pc_type": "lu",
     "fieldsplit_p_pc_factor_mat_solver_type": "mumps",
@@ -142,14 +139,19 @@ MIXED_ITERATIVE: dict[str, object] = {
 }
 """Schur field split for the mixed (u, p, θ) tangent (splits ``u`` and ``p``; see the module docstring).
 
+The displacement block is preconditioned by the two-level p-multigrid of
+:mod:`hyperfem.solver.pmultigrid` (:data:`~hyperfem.solver.pmultigrid.P_MULTIGRID_U`;
+GAMG on the P2 block itself, :data:`~hyperfem.solver.pmultigrid.GAMG_U`, was
+the choice before: 12–30 % slower and 15 % more memory at 100k unknowns).
+
 The preconditioner is rebuilt at the first Newton iteration of every solve
-and then every third (``snes_lag_preconditioner 3``): the GAMG set-up of the
-P2 displacement block (its Galerkin products) is the dominant cost, and a
-two-iterations-old hierarchy is nearly as good. Measured (mixed bend,
-31k unknowns, serial, ``PETSC_OPTIONS=-log_view``): lag 1: 5 set-ups, 184
-Krylov iterations; lag 3: 2 set-ups, 192 iterations; GAMG set-up time down
-by 60 %. The threshold 0.02 keeps three levels (0.05: four, and 2× the
-set-up time)."""
+and then every third (``snes_lag_preconditioner 3``). Measured with GAMG on
+the P2 block (mixed bend, 31k unknowns, serial, ``PETSC_OPTIONS=-log_view``):
+lag 1: 5 set-ups, 184 Krylov iterations; lag 3: 2 set-ups, 192 iterations;
+GAMG set-up time down by 60 %. With the p-multigrid the set-up is cheap and
+the lag matters less: at 100k unknowns on 2 ranks lag 1 took 17.3–18.3 s
+(303 Krylov iterations), lag 3 16.6–17.6 s (306;
+``results/issue20_pmg_s34.jsonl``)."""
 
 HIGH_ORDER_LAG = 5
 """``snes_lag_preconditioner`` of the iterative path for displacement degree 2 and higher (P1: 2).
@@ -487,11 +489,14 @@ def _owned_global(W: fem.FunctionSpace, local: np.ndarray) -> np.ndarray:
 
 
 def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> Callable[[PETSc.KSP], None]:
-    """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``.
+    """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``, the p-multigrid hook.
 
     The ``u`` index set has the block size of the displacement (its owned
     dofs come in node triples on every rank), so the ``u`` block is a
-    blocked matrix and GAMG aggregates nodes, not scalar dofs. Measured
+    blocked matrix: its smoother inverts node blocks and GAMG (on it, or on
+    the P1 level of :class:`~hyperfem.solver.pmultigrid.PMultigridHook`,
+    installed as the KSP's pre-solve hook) aggregates nodes, not scalar
+    dofs. Measured with GAMG on the ``u`` block
     (``benchmarks/scale.py --formulation mixed --variants hyperfem-iterative``,
     quiet 2-core machine, 100k unknowns): 45.7 → 29.3 s serial, 21.1 →
     16.4 s on 2 ranks; the field split's set-up 15.4 → 3.2 s, 208 → 247
@@ -511,7 +516,8 @@ def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> 
     u_global = _owned_global(W, u_local[u_rows])
     p_global = np.sort(_owned_global(W, np.concatenate([fields["pressure"], fields["volume"]])))
     gdim = W.mesh.geometry.dim
-    X = base.displacement_space().collapse()[0].tabulate_dof_coordinates()[u_rows // gdim].T
+    V = base.displacement_space().collapse()[0]
+    X = V.tabulate_dof_coordinates()[u_rows // gdim].T
     component = u_rows % gdim
     # The owned displacement dofs in node triples (x, y, z at consecutive indices) on every rank: then the
     # u block is a blocked matrix (the block size of its index set) and GAMG aggregates nodes, not scalar dofs.
@@ -520,6 +526,7 @@ def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> 
         and np.all(np.diff(u_global.reshape(-1, gdim), axis=1) == 1)
     )
     nodal = bool(comm.allreduce(triples, op=MPI.LAND))
+    multigrid = PMultigridHook(V, u_rows, nodal)
 
     def configure(ksp: PETSc.KSP) -> None:
         pc = ksp.getPC()
@@ -539,6 +546,7 @@ def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> 
             is_u.setBlockSize(gdim)
         is_u.compose("nearnullspace", PETSc.NullSpace().create(vectors=vectors, comm=comm))
         pc.setFieldSplitIS(("u", is_u), ("p", is_p))
+        ksp.setPreSolve(multigrid)
 
     return configure
 

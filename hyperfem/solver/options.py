@@ -87,17 +87,21 @@ def merge_options(
         # (roundoff.VOLUME_REFERENCE) for that.
         defaults["snes_linesearch_atol"] = 0.0
     user = dict(petsc_options or {})
-    if "pc_type" in user and user["pc_type"] != linear.get("pc_type"):
-        # Another preconditioner: the linear solver's options of its own one (a factorisation's solver package,
-        # GAMG's and the field split's settings) would be left unused (PETSc's "unused database options").
-        linear = {k: v for k, v in linear.items() if not k.startswith(_PC_SPECIFIC) or k == "pc_type"}
-        if user["pc_type"] in ("lu", "cholesky"):  # PETSc's own factorisations are serial only
-            linear["pc_factor_mat_solver_type"] = "mumps"
-            # The AMG paths lag their hierarchy (snes_lag_preconditioner 2-5). A lagged factorisation
-            # is a chord method: measured (benchmarks/linear_degree.py, bend, full load), P2 at
-            # 30.8k unknowns took 16 Newton iterations with LU lagged by 5 and 4 without. The
-            # user's own lag, if any, is kept below.
-            linear.pop("snes_lag_preconditioner", None)
+    for key in [k for k in user if k.endswith("pc_type") and user[k] != linear.get(k)]:
+        # Another preconditioner, of the whole system or of one split ("fieldsplit_u_pc_type"): the linear
+        # solver's options of its own one (a factorisation's solver package, GAMG's, the p-multigrid's and the
+        # field split's settings) would be left unused (PETSc's "unused database options") or, worse, read
+        # by the new one (GAMG refuses the p-multigrid's "mg_levels").
+        scope = key[: -len("pc_type")]
+        linear = {k: v for k, v in linear.items() if k == key or not k.startswith(_pc_specific(scope))}
+        if user[key] in ("lu", "cholesky"):  # PETSc's own factorisations are serial only
+            linear[f"{scope}pc_factor_mat_solver_type"] = "mumps"
+            if not scope:
+                # The AMG paths lag their hierarchy (snes_lag_preconditioner 2-5). A lagged factorisation
+                # is a chord method: measured (benchmarks/linear_degree.py, bend, full load), P2 at
+                # 30.8k unknowns took 16 Newton iterations with LU lagged by 5 and 4 without. The
+                # user's own lag, if any, is kept below.
+                linear.pop("snes_lag_preconditioner", None)
     if user.get("ksp_type") == "preonly" and linear.get("ksp_type") != "preonly":
         # One preconditioner application: the Krylov method's tolerances and restart would be unused.
         linear = {k: v for k, v in linear.items() if not k.startswith("ksp_")}
@@ -107,6 +111,11 @@ def merge_options(
 _PC_SPECIFIC = ("pc_", "mg_", "fieldsplit_")
 """Prefixes of options that belong to one preconditioner (dropped from the linear solver's when the user names
 another ``pc_type``)."""
+
+
+def _pc_specific(scope: str) -> tuple[str, ...]:
+    """The prefixes of the options of the preconditioner whose type is ``<scope>pc_type``."""
+    return tuple(scope + prefix for prefix in _PC_SPECIFIC)
 
 
 def clean_options(prefix: str, options: Mapping[str, object]) -> None:
