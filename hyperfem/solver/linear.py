@@ -63,7 +63,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepState
-from hyperfem.solver.pmultigrid import P_MULTIGRID_U, PMultigridHook
+from hyperfem.solver.pmultigrid import P_MULTIGRID_U, PMultigridLevels
 
 __all__ = [
     "DIRECT",
@@ -142,16 +142,16 @@ MIXED_ITERATIVE: dict[str, object] = {
 The displacement block is preconditioned by the two-level p-multigrid of
 :mod:`hyperfem.solver.pmultigrid` (:data:`~hyperfem.solver.pmultigrid.P_MULTIGRID_U`;
 GAMG on the P2 block itself, :data:`~hyperfem.solver.pmultigrid.GAMG_U`, was
-the choice before: 12–30 % slower and 15 % more memory at 100k unknowns).
+the choice before: 1.5× the time at 100k unknowns, 1.8× at 962k on 2 ranks).
 
 The preconditioner is rebuilt at the first Newton iteration of every solve
 and then every third (``snes_lag_preconditioner 3``). Measured with GAMG on
 the P2 block (mixed bend, 31k unknowns, serial, ``PETSC_OPTIONS=-log_view``):
 lag 1: 5 set-ups, 184 Krylov iterations; lag 3: 2 set-ups, 192 iterations;
 GAMG set-up time down by 60 %. With the p-multigrid the set-up is cheap and
-the lag matters less: at 100k unknowns on 2 ranks lag 1 took 17.3–18.3 s
-(303 Krylov iterations), lag 3 16.6–17.6 s (306;
-``results/issue20_pmg_s34.jsonl``)."""
+the lag matters less: at 100k unknowns on 2 ranks lag 1 took 13.6–16.3 s
+(207 Krylov iterations), lag 3 11.2–14.7 s (209;
+``results/issue20_pmg_rigid_s34.jsonl``)."""
 
 HIGH_ORDER_LAG = 5
 """``snes_lag_preconditioner`` of the iterative path for displacement degree 2 and higher (P1: 2).
@@ -489,13 +489,13 @@ def _owned_global(W: fem.FunctionSpace, local: np.ndarray) -> np.ndarray:
 
 
 def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> Callable[[PETSc.KSP], None]:
-    """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``, the p-multigrid hook.
+    """Index sets of the ``u`` and ``p`` (pressure and volume) splits, rigid-body modes on ``u``, the P1 level.
 
     The ``u`` index set has the block size of the displacement (its owned
     dofs come in node triples on every rank), so the ``u`` block is a
     blocked matrix: its smoother inverts node blocks and GAMG (on it, or on
-    the P1 level of :class:`~hyperfem.solver.pmultigrid.PMultigridHook`,
-    installed as the KSP's pre-solve hook) aggregates nodes, not scalar
+    the P1 level of :class:`~hyperfem.solver.pmultigrid.PMultigridLevels`,
+    registered for the ``u`` block's options prefix) aggregates nodes, not scalar
     dofs. Measured with GAMG on the ``u`` block
     (``benchmarks/scale.py --formulation mixed --variants hyperfem-iterative``,
     quiet 2-core machine, 100k unknowns): 45.7 → 29.3 s serial, 21.1 →
@@ -526,7 +526,7 @@ def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> 
         and np.all(np.diff(u_global.reshape(-1, gdim), axis=1) == 1)
     )
     nodal = bool(comm.allreduce(triples, op=MPI.LAND))
-    multigrid = PMultigridHook(V, u_rows, nodal)
+    multigrid = PMultigridLevels(V, u_rows, nodal)
 
     def configure(ksp: PETSc.KSP) -> None:
         pc = ksp.getPC()
@@ -546,7 +546,7 @@ def _fieldsplit_configure(problem: SolidProblem, base: MixedProblemProtocol) -> 
             is_u.setBlockSize(gdim)
         is_u.compose("nearnullspace", PETSc.NullSpace().create(vectors=vectors, comm=comm))
         pc.setFieldSplitIS(("u", is_u), ("p", is_p))
-        ksp.setPreSolve(multigrid)
+        multigrid.register(f"{ksp.getOptionsPrefix() or ''}fieldsplit_u_")
 
     return configure
 

@@ -12,59 +12,68 @@ method instead:
   through the interpolation :math:`\Pi` from P1 to P\ :sub:`k`
   (:func:`dolfinx.fem.petsc.interpolation_matrix`, its rows put into the
   split's ordering of the displacement dofs), with the Galerkin operator
-  :math:`\Pi^T K_{uu} \Pi` (PETSc's ``pc_mg_galerkin``): what the P1
-  elements would assemble for a linear tangent, without a second form;
-* the coarse operator gets one GAMG V-cycle, with the rigid-body modes built
-  by GAMG from the P1 node coordinates (``PCSetCoordinates``).
+  :math:`\Pi^T K_{uu} \Pi` (``MatPtAP``): what the P1 elements would
+  assemble for a linear tangent, without a second form;
+* the coarse operator gets one GAMG V-cycle, with the rigid-body modes of
+  the P1 node coordinates as its near-nullspace.
 
-PETSc creates the field split's sub-solvers only when the split is first set
-up, inside the Krylov solve. :class:`PMultigridHook`, installed as the outer
-KSP's pre-solve hook, sets the split up early (a no-op once it is) and hands
-the interpolation to the displacement block's ``PCMG`` whenever that block
-has none: on the first solve, and again after a reset.
+The cycle is a PETSc ``python`` preconditioner, :class:`TwoLevel`, which
+PETSc creates from the options (``pc_python_type``) when it creates the
+field split's sub-solvers, inside the first Krylov solve. It finds its
+levels (:class:`PMultigridLevels`, registered under its options prefix by
+the solver's ``configure`` hook) by that prefix. Its set-up runs where
+PETSc sets up a preconditioner, so ``snes_lag_preconditioner`` and a
+rebuild after a failed solve apply to it as to any other. (A first version
+handed an interpolation to PETSc's ``PCMG`` from the KSP's pre-solve hook:
+the coarse solver was still PCMG's default LU there, so the coordinates
+never reached GAMG, and it depended on when PETSc calls that hook.)
 
-Measured (the mixed bend of ``benchmarks/scale.py --formulation mixed``,
-P2/P1/P1, full load in one Newton solve, quiet 2-core machine, interleaved;
-the same 5 Newton iterations and the same test point, to 1e-15 at 962k):
+Measured (the mixed bend of ``benchmarks/scale.py --formulation mixed
+--variants hyperfem-iterative hyperfem-gamg-u``, P2/P1/P1, full load in one
+Newton solve, quiet 2-core machine, interleaved; the same 5 Newton
+iterations and the same test point, to 1e-15 at 962k;
+``results/issue20_pmg_rigid_s34.jsonl``, memory the peak resident set of
+all ranks):
 
-==========================  ===========================  ===========================
-case                        GAMG on the P2 block         p-multigrid
-==========================  ===========================  ===========================
-31k unknowns, serial        9.1–10.0 s (231)             7.3–7.9 s (287)
-100k, serial                35.3–36.4 s (247)            29.3–30.7 s (310)
-100k, 2 ranks               20.8–21.2 s; 18.8–20.4 s     14.3–16.7 s; 16.6–17.6 s
-                            (247), 1.22 GB               (306), 1.06 GB
-962k, 2 ranks               236 s (285), 10.4 GB         192 s (336), 8.5 GB
-==========================  ===========================  ===========================
+=================  ===============================  ===============================
+case               GAMG on the P2 block             p-multigrid
+=================  ===============================  ===============================
+100k, serial       30.7 s (247 Krylov), 0.85 GB     18.1–20.8 s (207), 0.80 GB
+100k, 2 ranks      16.4–16.8 s (247), 1.22 GB       10.7–11.5 s (209), 1.04 GB
+962k, 2 ranks      250 s (285), 10.5 GB             137 s (210), 8.3 GB
+=================  ===============================  ===============================
 
-(Krylov iterations in brackets: more of them, each cheaper; the second
-100k pair and the 962k row are ``scale.py --variants hyperfem-iterative
-hyperfem-gamg-u``, ``results/issue20_pmg_s34.jsonl``, memory the peak
-resident set of both ranks.) At 962k the block's set-up takes 12.7 s
-instead of 33.3 s and the Krylov solve 121 s instead of 149 s. With two
-Chebyshev steps on the fine level the Krylov count drops (290 at 100k) but
-each costs more, 31–33 s serial; SOR smoothing 64 s. On the displacement
-problem the same two levels do not beat GAMG on the P3/P4 tangent
+At 962k the block's set-up takes 13.8 s instead of 30.5 s and the Krylov
+solve 71 s instead of 159 s. The rigid-body rotations on the coarse level
+matter: the first version, whose coarse GAMG had the translations only
+(``results/issue20_pmg_s34.jsonl``), took 192 s and 336 Krylov iterations
+at 962k. With two Chebyshev steps on the fine level the Krylov count drops
+but each costs more (31–33 s against 29–31 s serially at 100k, first
+version); SOR smoothing 64 s. On the displacement problem the same two
+levels do not beat GAMG on the P3/P4 tangent by much
 (``benchmarks/linear_degree.py --variants pmg``).
 """
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 from petsc4py import PETSc
 from dolfinx import fem
 
-__all__ = ["GAMG_U", "P_MULTIGRID_U", "PMultigridHook", "p_multigrid_options"]
+__all__ = ["GAMG_U", "P_MULTIGRID_U", "PMultigridLevels", "TwoLevel", "p_multigrid_options"]
 
 
 def p_multigrid_options(prefix: str = "") -> dict[str, object]:
     """The options of the two-level p-multigrid (module docstring) of the preconditioner under ``prefix``."""
     own: dict[str, object] = {
-        "pc_type": "mg",
-        "pc_mg_levels": 2,
-        "pc_mg_galerkin": "both",
+        "pc_type": "python",
+        "pc_python_type": f"{__name__}.TwoLevel",
         "mg_levels_ksp_type": "chebyshev",
         "mg_levels_ksp_max_it": 1,
+        "mg_levels_ksp_chebyshev_esteig": "0,0.1,0,1.1",
+        "mg_levels_ksp_norm_type": "none",
         "mg_levels_pc_type": "pbjacobi",
         "mg_coarse_ksp_type": "preonly",
         "mg_coarse_pc_type": "gamg",
@@ -93,17 +102,12 @@ Kept for comparison (``benchmarks/scale.py --formulation mixed --variants
 hyperfem-iterative hyperfem-gamg-u``) and for users who want it back
 (``petsc_options=GAMG_U``: the rigid-body modes come with the split's index set)."""
 
-
-def _has_interpolation(pc: PETSc.PC) -> bool:
-    """Whether the two-level ``PCMG`` ``pc`` has its interpolation (PETSc may raise where it has none)."""
-    try:
-        return bool(pc.getMGInterpolation(1))  # a null Mat is false
-    except PETSc.Error:
-        return False
+_REGISTRY: weakref.WeakValueDictionary[str, PMultigridLevels] = weakref.WeakValueDictionary()
+"""The levels of each preconditioner, by its options prefix (alive as long as the solver that registered them)."""
 
 
-class PMultigridHook:
-    """The KSP's pre-solve hook that gives its (or its field split's displacement block's) ``PCMG`` its P1 level.
+class PMultigridLevels:
+    """The P1 level of a P\\ :sub:`k` displacement block: the interpolation and the P1 node coordinates.
 
     Args:
         space: The displacement space (P\\ :sub:`k`, blocked; collapsed from a mixed space).
@@ -113,7 +117,7 @@ class PMultigridHook:
         nodal: Whether those dofs come in node triples (pairs in 2D) on every
             rank, so the interpolation's rows are node blocks.
 
-    The interpolation is built at the first solve that needs it.
+    Built at the first set-up that needs them.
     """
 
     def __init__(self, space: fem.FunctionSpace, rows: np.ndarray | None = None, nodal: bool = True) -> None:
@@ -124,7 +128,11 @@ class PMultigridHook:
         self._nodal = nodal
         self._levels: tuple[PETSc.Mat, np.ndarray] | None = None
 
-    def _coarse_level(self) -> tuple[PETSc.Mat, np.ndarray]:
+    def register(self, prefix: str) -> None:
+        """Make these the levels of the :class:`TwoLevel` preconditioner under the options prefix ``prefix``."""
+        _REGISTRY[prefix] = self
+
+    def coarse_level(self) -> tuple[PETSc.Mat, np.ndarray]:
         """The interpolation from P1 (rows in the block's order) and the P1 node coordinates owned here."""
         import dolfinx.fem.petsc as fpetsc
 
@@ -149,14 +157,90 @@ class PMultigridHook:
             self._levels = (P, np.ascontiguousarray(X))
         return self._levels
 
-    def __call__(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """Give the two-level ``PCMG`` the P1 level where it has none (setting a field split up first)."""
-        block = ksp.getPC()
-        if block.getType() == PETSc.PC.Type.FIELDSPLIT:
-            block.setUp()  # creates the sub-solvers (a no-op once set up)
-            block = block.getFieldSplitSubKSP()[0].getPC()
-        if block.getType() != PETSc.PC.Type.MG or block.getMGLevels() != 2 or _has_interpolation(block):
-            return  # options chose another preconditioner, or the level is in place
-        P, X = self._coarse_level()
-        block.setMGInterpolation(1, P)
-        block.getMGCoarseSolve().getPC().setCoordinates(X)  # type: ignore[arg-type]  # petsc4py takes an array
+
+class TwoLevel:
+    """A petsc4py ``python`` preconditioner context: one V(1, 1)-cycle of the two-level p-multigrid.
+
+    PETSc creates it (``pc_python_type``); its levels are the
+    :class:`PMultigridLevels` registered under its options prefix. Its
+    smoother (``<prefix>mg_levels_``) and coarse solver (``<prefix>mg_coarse_``)
+    are KSPs configured from the options.
+    """
+
+    def __init__(self) -> None:
+        self._P: PETSc.Mat | None = None
+        self._coarse_matrix: PETSc.Mat | None = None
+        self._smoother: PETSc.KSP | None = None
+        self._coarse: PETSc.KSP | None = None
+        self._work: tuple[PETSc.Vec, PETSc.Vec, PETSc.Vec] | None = None
+        self._modes: PETSc.NullSpace | None = None
+        self._nonzeros = -1.0
+
+    def setUp(self, pc: PETSc.PC) -> None:
+        """Galerkin P1 operator of the current block; smoother and coarse solver set up on it.
+
+        The product is redone from scratch (symbolically) when the block's
+        nonzero count changed (contact pairs add entries), else only numerically.
+        """
+        A, B = pc.getOperators()
+        nonzeros = B.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]  # type: ignore[arg-type]  # an int enum
+        if self._P is None:
+            prefix = pc.getOptionsPrefix() or ""
+            levels = _REGISTRY.get(prefix)
+            if levels is None:
+                raise RuntimeError(f"p-multigrid: no levels registered for the options prefix {prefix!r}")
+            self._P, X = levels.coarse_level()
+            coordinates = self._P.createVecRight()
+            coordinates.array_w[:] = X.reshape(-1)
+            # The rigid-body modes from the P1 node coordinates, on every coarse operator (GAMG reads them there).
+            self._modes = PETSc.NullSpace().createRigidBody(coordinates)
+            coordinates.destroy()
+            self._coarse = _ksp(pc.getComm(), prefix + "mg_coarse_")
+            self._smoother = _ksp(pc.getComm(), prefix + "mg_levels_")
+            self._work = (A.createVecLeft(), self._P.createVecRight(), self._P.createVecRight())
+        assert self._coarse is not None and self._smoother is not None and self._modes is not None
+        if self._coarse_matrix is None or nonzeros != self._nonzeros:
+            if self._coarse_matrix is not None:
+                self._coarse_matrix.destroy()
+            self._coarse_matrix = B.ptap(self._P)
+            self._coarse_matrix.setNearNullSpace(self._modes)
+        else:
+            B.ptap(self._P, result=self._coarse_matrix)
+        self._nonzeros = nonzeros
+        self._coarse.setOperators(self._coarse_matrix, self._coarse_matrix)
+        self._smoother.setOperators(A, B)
+        self._coarse.setUp()
+        self._smoother.setUp()
+
+    def apply(self, pc: PETSc.PC, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """``y``: pre-smoothing from zero, the coarse correction, post-smoothing."""
+        assert self._smoother is not None and self._coarse is not None and self._work is not None
+        assert self._P is not None
+        smoother, P = self._smoother, self._P
+        r, rc, yc = self._work
+        A = smoother.getOperators()[0]
+        smoother.setInitialGuessNonzero(False)
+        smoother.solve(x, y)
+        A.mult(y, r)
+        r.aypx(-1.0, x)  # r = x - A y
+        P.multTranspose(r, rc)
+        self._coarse.solve(rc, yc)
+        P.multAdd(yc, y, y)
+        smoother.setInitialGuessNonzero(True)
+        smoother.solve(x, y)
+
+    def view(self, pc: PETSc.PC, viewer: PETSc.Viewer | None = None) -> None:
+        """What ``-ksp_view`` prints: the levels' sizes and the coarse solver."""
+        if self._P is None or viewer is None:
+            return
+        viewer.printfASCII(f"two-level p-multigrid: fine {self._P.getSize()[0]}, P1 {self._P.getSize()[1]}\n")
+        assert self._coarse is not None
+        self._coarse.view(viewer)
+
+
+def _ksp(comm: object, prefix: str) -> PETSc.KSP:
+    """A KSP configured from the options under ``prefix``."""
+    ksp = PETSc.KSP().create(comm)  # type: ignore[arg-type]  # a petsc4py Comm
+    ksp.setOptionsPrefix(prefix)
+    ksp.setFromOptions()
+    return ksp
