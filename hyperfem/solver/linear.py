@@ -379,10 +379,22 @@ class LinearSolver:
 class ShiftedPreconditioner:
     r"""The preconditioning matrix :math:`K + S` of a tangent :math:`K` and a constant shift :math:`S`.
 
-    :math:`S` (:attr:`LinearSolver.preconditioner_shift`) is assembled once
-    into the tangent's sparsity (every cell block), so tangent, shift and
+    :math:`S` (:attr:`LinearSolver.preconditioner_shift`) is assembled into
+    the tangent's sparsity (every cell block), so tangent, shift and
     preconditioning matrix share one pattern; each call copies the tangent
     and adds the shift (no second assembly).
+
+    A tangent with entries outside the form's pattern (a contact Hessian,
+    :meth:`~hyperfem.solver.external.ExternalTerms.add_tangent`) makes the
+    next call assemble the shift again into the grown pattern and return a
+    new :attr:`matrix`: a new object, so every preconditioner given it sets
+    itself up anew. The same object grown in place is not safe: PETSc's
+    ``MatAXPY`` with ``DIFFERENT_NONZERO_PATTERN`` (3.25) gives the grown
+    matrix the nonzero state of a fresh one, the same after each growth, so
+    a field split set up before the second growth reuses its sub-matrices
+    and stops ("Cannot reuse matrix. wrong number of nonzeros"). The
+    previous matrix is kept until the next call (the caller may still hold
+    it).
 
     Args:
         A: The tangent matrix (its sparsity pattern).
@@ -393,20 +405,37 @@ class ShiftedPreconditioner:
     """
 
     def __init__(self, A: PETSc.Mat, shift: fem.Form) -> None:
-        import dolfinx.fem.petsc as fpetsc
-
-        self._shift = A.duplicate()
-        fpetsc.assemble_matrix(self._shift, shift)  # type: ignore[arg-type]  # dolfinx: singledispatch (Mat, Form)
-        self._shift.assemble()
+        self._form = shift
+        self._previous: PETSc.Mat | None = None
+        self._shift = self._assemble_shift(A)
         self.matrix = self._shift.duplicate(copy=True)
 
+    def _assemble_shift(self, A: PETSc.Mat) -> PETSc.Mat:
+        """:math:`S` assembled into a matrix of ``A``'s pattern."""
+        import dolfinx.fem.petsc as fpetsc
+
+        S = A.duplicate()
+        fpetsc.assemble_matrix(S, self._form)  # type: ignore[arg-type]  # dolfinx: singledispatch (Mat, Form)
+        S.assemble()
+        return S
+
     def __call__(self, A: PETSc.Mat) -> PETSc.Mat:
-        """:attr:`matrix` set to a copy of the assembled tangent ``A`` plus the shift."""
-        P = self.matrix
+        """:attr:`matrix` set to a copy of the assembled tangent ``A`` plus the shift (class docstring)."""
         same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+        self._previous = None
+        if _nonzeros(A) != _nonzeros(self._shift):  # the tangent's pattern grew
+            self._shift.destroy()
+            self._shift = self._assemble_shift(A)
+            self._previous, self.matrix = self.matrix, A.duplicate()
+        P = self.matrix
         A.copy(P, structure=same)  # type: ignore[arg-type]  # petsc4py: int enums
         P.axpy(1.0, self._shift, structure=same)  # type: ignore[arg-type]  # petsc4py: int enums
         return P
+
+
+def _nonzeros(A: PETSc.Mat) -> int:
+    """The number of stored entries of ``A`` over all ranks (collective)."""
+    return int(A.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])  # type: ignore[arg-type]  # an int enum
 
 
 class AIJPreconditioner:

@@ -486,10 +486,19 @@ class NewtonSolver:
         if isinstance(preconditioner, AIJPreconditioner):
             lag = int(self.options.get("snes_lag_preconditioner", 1))  # type: ignore[call-overload]
 
+        replaced: list[PETSc.Mat] = []
+
         def shifted_jacobian(snes_: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
             jacobian(snes_, x, A, None, **jacobian_kw)
+            replaced.clear()
             if not me()._in_snes or preconditioner_rebuilt(snes_.getIterationNumber(), lag):
                 preconditioner(A)
+            if preconditioner.matrix.handle != P.handle:
+                # A new preconditioning matrix (the tangent's pattern grew, ShiftedPreconditioner): SNES
+                # hands it to its KSP after this call, which then sets the preconditioner up anew. The old
+                # one is kept alive until the next call (SNESComputeJacobian still holds it).
+                replaced.append(P)
+                snes_.setJacobian(shifted_jacobian, A, preconditioner.matrix)
 
         snes.setJacobian(shifted_jacobian, self._nlp.A, preconditioner.matrix)
 
@@ -641,6 +650,7 @@ class NewtonSolver:
             self.external.project_tangents()
             J, P, _ = self.snes.getJacobian()
             self.snes.computeJacobian(x, J, P)
+            J, P, _ = self.snes.getJacobian()  # a grown pattern gives a new preconditioning matrix
             ksp.setOperators(J, P)
             ksp.solve(r, y)
             failed = int(ksp.getConvergedReason()) < 0  # type: ignore[call-overload]  # an int
