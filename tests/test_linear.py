@@ -33,6 +33,7 @@ from hyperfem.solver.linear import (
     DIRECT_THRESHOLD,
     MIXED_DIRECT_THRESHOLD,
     choose_linear_solver,
+    describe,
     rigid_body_modes,
 )
 
@@ -102,6 +103,47 @@ def test_automatic_choice():
     assert mixed.u.function_space.dofmap.index_map.size_global < MIXED_DIRECT_THRESHOLD
     split = choose_linear_solver(mixed, mixed_threshold=0)
     assert split.options["pc_type"] == "fieldsplit" and split.preconditioner_shift is not None and split.configure
+    # P2 and up: CG + the two-level p-multigrid; follower loads GMRES + GAMG.
+    p2 = choose_linear_solver(_beam(bend_load(), degree=2), threshold=0)
+    assert describe(p2.options) == "cg+pmg" and p2.configure is not None
+    assert describe(choose_linear_solver(_beam(twist_load(), degree=2), threshold=0).options) == "gmres+gamg"
+
+
+def _p2_displacement(cell: str):
+    """The P2 beam under the bend load (tetrahedra), or a P2 plane-strain strip bent by its end (triangles)."""
+    if cell == "tetrahedron":
+        return _beam(bend_load(), degree=2)
+    mesh = dmesh.create_rectangle(MPI.COMM_WORLD, [[-5.0, -1.0], [5.0, 1.0]], [10, 3], dmesh.CellType.triangle)
+    domain = hf.Domain.from_locators(
+        mesh, {"clamped": lambda x: np.isclose(x[0], -5.0), "free_end": lambda x: np.isclose(x[0], 5.0)}
+    )
+    params = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
+    bcs = [hf.Clamp("clamped"), hf.PrescribedDisplacement("free_end", [-1.0], components=[1])]
+    return hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, params), bcs=bcs, degree=2)
+
+
+@pytest.mark.parametrize("cell", ["tetrahedron", "triangle"])
+def test_p2_displacement_is_preconditioned_on_p1(cell):
+    """The displacement problem of degree 2 on the iterative path: CG + the two-level p-multigrid of the mixed
+    problem's displacement block (P1 Galerkin level, GAMG with the rigid-body modes), the solution LU's."""
+    results = []
+    for threshold in (10**12, 0):
+        problem = _p2_displacement(cell)
+        solver = hf.NewtonSolver(problem, linear_solver=choose_linear_solver(problem, threshold=threshold))
+        problem.set_time(1.0)
+        rec = solver.solve(raise_on_failure=True)
+        results.append(problem.u.x.array.copy())
+    assert rec.linear_solver == "cg+pmg"
+    assert rec.linear_iterations < 100 * rec.iterations
+    gdim = problem.domain.mesh.geometry.dim
+    cycle = solver.snes.getKSP().getPC().getPythonContext()
+    coarse = cycle._coarse.getPC()
+    vertices = problem.domain.mesh.topology.index_map(0).size_global
+    assert coarse.getType() == "gamg" and coarse.getOperators()[0].getSize() == (gdim * vertices,) * 2
+    assert coarse.getMGLevels() >= 2
+    assert coarse.getMGSmoother(coarse.getMGLevels() - 2).getOperators()[0].getBlockSize() == 3 * (gdim - 1)
+    scale = MPI.COMM_WORLD.allreduce(float(np.abs(results[0]).max()), op=MPI.MAX)
+    np.testing.assert_allclose(results[1], results[0], rtol=0, atol=1e-8 * scale)
 
 
 @pytest.mark.parametrize("load", [bend_load, twist_load], ids=["bend-cg", "twist-gmres"])

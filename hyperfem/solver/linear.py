@@ -63,7 +63,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from hyperfem.problem.protocol import MixedProblemProtocol, SolidProblem, TimeStepState
-from hyperfem.solver.pmultigrid import P_MULTIGRID_U, PMultigridLevels
+from hyperfem.solver.pmultigrid import P_MULTIGRID, P_MULTIGRID_U, PMultigridLevels
 
 __all__ = [
     "DIRECT",
@@ -296,8 +296,10 @@ def pc_setup_seconds(comm: MPI.Comm | None = None) -> float:
 
 
 def describe(options: Mapping[str, object]) -> str:
-    """Short name of a KSP/PC configuration, e.g. ``"preonly+lu(mumps)"`` or ``"cg+gamg"``."""
+    """Short name of a KSP/PC configuration, e.g. ``"preonly+lu(mumps)"``, ``"cg+gamg"`` or ``"cg+pmg"``."""
     ksp, pc = options.get("ksp_type", "?"), options.get("pc_type", "?")
+    if pc == "python" and str(options.get("pc_python_type", "")).endswith("pmultigrid.TwoLevel"):
+        pc = "pmg"
     factor = options.get("pc_factor_mat_solver_type") if pc in ("lu", "cholesky") else None
     return f"{ksp}+{pc}" + (f"({factor})" if factor else "")
 
@@ -608,6 +610,22 @@ def choose_linear_solver(
     if _global_size(W) < threshold:
         return LinearSolver()
     options = dict(SYMMETRIC_ITERATIVE if problem.conservative else NONSYMMETRIC_ITERATIVE)
+    configure = None
     if degree >= 2:
         options["snes_lag_preconditioner"] = HIGH_ORDER_LAG
-    return LinearSolver(options, near_nullspace=_near_nullspace_hook(V), matrix_kind=BLOCKED_TANGENT)
+        if problem.conservative:  # CG: the p-multigrid (GMRES on follower loads keeps GAMG: not measured)
+            options = {k: v for k, v in options.items() if not k.startswith(("pc_", "mg_"))} | P_MULTIGRID
+            configure = _p_multigrid_configure(V)
+    return LinearSolver(
+        options, near_nullspace=_near_nullspace_hook(V), configure=configure, matrix_kind=BLOCKED_TANGENT
+    )
+
+
+def _p_multigrid_configure(V: fem.FunctionSpace) -> Callable[[PETSc.KSP], None]:
+    """Register the P1 level of the displacement space ``V`` for the two-level p-multigrid of a KSP."""
+    levels = PMultigridLevels(V)
+
+    def configure(ksp: PETSc.KSP) -> None:
+        levels.register(ksp.getOptionsPrefix() or "")
+
+    return configure

@@ -49,10 +49,11 @@ matter: the first version, whose coarse GAMG had the translations only
 (``results/issue20_pmg_s34.jsonl``), took 192 s and 336 Krylov iterations
 at 962k. With two Chebyshev steps on the fine level the Krylov count drops
 but each costs more (31–33 s against 29–31 s serially at 100k, first
-version); SOR smoothing 64 s. On the displacement problem the same two
-levels are faster than GAMG on P3–P5 tangents but only level with MUMPS
-there (``benchmarks/linear_degree.py --variants pmg``), so that path keeps
-its GAMG until its thresholds are measured again.
+version); SOR smoothing 64 s.
+
+The displacement problem of degree 2 and up takes the same two levels on its
+whole tangent (:data:`P_MULTIGRID`, CG): faster than GAMG on P2 to P5
+(``benchmarks/linear_degree.py``); follower loads (GMRES) keep GAMG.
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ from dolfinx import fem
 
 from hyperfem.errors import ParameterError
 
-__all__ = ["GAMG_U", "P_MULTIGRID_U", "PMultigridLevels", "TwoLevel", "p_multigrid_options"]
+__all__ = ["GAMG_U", "P_MULTIGRID", "P_MULTIGRID_U", "PMultigridLevels", "TwoLevel", "p_multigrid_options"]
 
 
 def p_multigrid_options(prefix: str = "") -> dict[str, object]:
@@ -90,6 +91,20 @@ def p_multigrid_options(prefix: str = "") -> dict[str, object]:
 
 P_MULTIGRID_U: dict[str, object] = {"fieldsplit_u_ksp_type": "preonly", **p_multigrid_options("fieldsplit_u_")}
 """The field split's displacement-block options of the two-level p-multigrid (module docstring)."""
+
+P_MULTIGRID: dict[str, object] = p_multigrid_options()
+"""The two-level p-multigrid as the preconditioner of the whole tangent (the displacement problem of degree ≥ 2).
+
+Measured against CG + GAMG on the P2 tangent (``benchmarks/linear_degree.py
+--variants iterative gamg``, bend, full load in one Newton solve, serial,
+quiet machine, ``results/linear_degree_pmg_s35.jsonl``): 2.60 s against
+3.01 s at 30.8k unknowns, 6.79 against 8.15 s at 86.8k, although Newton
+took 5 iterations against 4. Stopping CG on the true residual
+(``ksp_norm_type unpreconditioned``) gave 4 Newton iterations and 1.78 s
+against 2.48–2.55 s, 6.3–6.4 against 8.5–9.9 s, but on 2 ranks the P2 bend
+at a load increment of 1e-4 (``tests/test_linear_paths.py``) then stalled at
+|r|/|r0| = 1.5e-3 and was cut back three times; CG's own (preconditioned)
+norm converges there in one step, as LU does."""
 
 GAMG_U: dict[str, object] = {
     "fieldsplit_u_ksp_type": "preonly",
