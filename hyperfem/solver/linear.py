@@ -17,7 +17,11 @@ solver overrides it):
   dynamics), :data:`NONSYMMETRIC_ITERATIVE` (GMRES + GAMG) with follower loads.
   GAMG gets the rigid-body modes of the displacement space as its
   near-nullspace (6 in 3D, 3 in 2D; :func:`rigid_body_modes`), so its coarse
-  spaces represent the motions the tangent barely resists;
+  spaces represent the motions the tangent barely resists. On a symmetric
+  tangent of degree 2 and up CG is preconditioned by the two-level
+  p-multigrid of :mod:`hyperfem.solver.pmultigrid` instead
+  (:data:`~hyperfem.solver.pmultigrid.P_MULTIGRID`: the P\ :sub:`k` tangent
+  smoothed, that GAMG on its Galerkin P1 operator);
 * above it, for the mixed problem: FGMRES with a Schur-complement
   field split (:data:`MIXED_ITERATIVE`): the displacement block by one
   V-cycle of a two-level p-multigrid (P2 smoothed, GAMG with the rigid-body
