@@ -12,10 +12,12 @@ On degree 2 and up the iterative path is CG + the two-level p-multigrid
 (:mod:`hyperfem.solver.pmultigrid`: P_k smoothed, GAMG with the rigid-body
 modes on the Galerkin P1 operator); ``--variants gamg`` forces CG + GAMG on
 the P_k tangent, the path before. Measured, serial, quiet machine,
-p-multigrid / GAMG (/ MUMPS): P2 30.8k 2.60 / 3.01 s, 86.8k 6.79 / 8.15 s
-(``results/linear_degree_pmg_s35.jsonl``); P3 16k 1.83 / 2.18 / 2.64 s (89 /
-142 CG iterations), P4 35.8k 11.3 / 12.2 / 13.1 s (173 / 189), P5 67k 45.5 /
-60.8 / 45.4 s (271 / 324) (``results/linear_degree_pmg_rigid_s34.jsonl``).
+p-multigrid / GAMG (/ MUMPS), ``results/linear_degree_pmg_s35.jsonl``: P2
+30.8k 2.60 / 3.01 s, 86.8k 6.79 / 8.15 s; P3 16k 1.84 / 3.15 / 2.75 s (89 /
+138 CG iterations), P4 35.8k 13.9 / 13.1 / 13.0 s (174 / 189; 5 Newton
+iterations against 4), P5 67k 47.8 / 58.7 / 41.0 s (270 / 324). An earlier
+run (``results/linear_degree_pmg_rigid_s34.jsonl``): P3 1.83 / 2.18 / 2.64,
+P4 11.3 / 12.2 / 13.1, P5 45.5 / 60.8 / 45.4 s.
 The thresholds to MUMPS (:data:`hyperfem.solver.linear.HIGH_ORDER_DIRECT_THRESHOLDS`)
 were measured with GAMG and are kept.
 """

@@ -52,8 +52,12 @@ but each costs more (31–33 s against 29–31 s serially at 100k, first
 version); SOR smoothing 64 s.
 
 The displacement problem of degree 2 and up takes the same two levels on its
-whole tangent (:data:`P_MULTIGRID`, CG): faster than GAMG on P2 to P5
-(``benchmarks/linear_degree.py``); follower loads (GMRES) keep GAMG.
+whole tangent (:data:`P_MULTIGRID`, CG). Against GAMG on the P\ :sub:`k`
+tangent (``benchmarks/linear_degree.py --variants iterative gamg direct``,
+bend, serial, quiet machine, ``results/linear_degree_pmg_s35.jsonl``;
+MUMPS in brackets): P2 30.8k 2.60 / 3.01 s, 86.8k 6.79 / 8.15 s; P3 16k
+1.84 / 3.15 s (2.75 s); P4 35.8k 13.9 / 13.1 s (13.0 s; 5 Newton iterations
+against 4); P5 67k 47.8 / 58.7 s (41.0 s). Follower loads (GMRES) keep GAMG.
 """
 
 from __future__ import annotations
