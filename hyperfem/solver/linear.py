@@ -413,6 +413,7 @@ class ShiftedPreconditioner:
     def __init__(self, A: PETSc.Mat, shift: fem.Form) -> None:
         self._form = shift
         self._previous: PETSc.Mat | None = None
+        self._pattern_size = 0
         self._shift = self._assemble_shift(A)
         self.matrix = self._shift.duplicate(copy=True)
 
@@ -423,13 +424,14 @@ class ShiftedPreconditioner:
         S = A.duplicate()
         fpetsc.assemble_matrix(S, self._form)  # type: ignore[arg-type]  # dolfinx: singledispatch (Mat, Form)
         S.assemble()
+        self._pattern_size = _nonzeros(S)  # the tangent's pattern it was assembled into
         return S
 
     def __call__(self, A: PETSc.Mat) -> PETSc.Mat:
         """:attr:`matrix` set to a copy of the assembled tangent ``A`` plus the shift (class docstring)."""
         same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
         self._previous = None
-        if _nonzeros(A) != _nonzeros(self._shift):  # the tangent's pattern grew
+        if _nonzeros(A) != self._pattern_size:  # the tangent's pattern grew
             self._shift.destroy()
             self._shift = self._assemble_shift(A)
             self._previous, self.matrix = self.matrix, A.duplicate()
