@@ -1,7 +1,7 @@
 """The iterative and the direct tangent solves give the same outcome on the hard cases.
 
 Above :data:`~hyperfem.solver.linear.DIRECT_THRESHOLD` unknowns Newton's
-tangent is solved by CG (GMRES with follower loads) + GAMG, or by the Schur
+tangent is solved by CG (GMRES with follower loads) + GAMG (P1) or the p-multigrid (P2 and up), or by the Schur
 field split for the mixed problem, to a relative tolerance of 1e-6. A month
 after the switch a bend at load increment 0.001 failed at once on that path
 (``DIVERGED_LINE_SEARCH`` at ``|r| = 0.07``) while MUMPS converged: the AMG-preconditioned
@@ -65,6 +65,7 @@ CASES = {
     "P2-dead-full": ("beam_h2", _bend, 2, False, 1.0),
     "P3-dead-full": ("beam_h2", _bend, 3, False, 1.0),
     "P2-follower-tiny": ("beam_h1", _bend, 2, True, 1e-3),
+    "P2-follower-tinier": ("beam_h1", _bend, 2, True, 1e-4),
     "P2-follower-full": ("beam_h2", _bend, 2, True, 1.0),
     "mixed-dead-tiny": ("beam_h1", _mixed_bend, 2, False, 1e-3),
     "mixed-dead-full": ("beam_h2", _mixed_bend, 2, False, 1.0),

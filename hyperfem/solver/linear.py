@@ -17,9 +17,9 @@ solver overrides it):
   dynamics), :data:`NONSYMMETRIC_ITERATIVE` (GMRES + GAMG) with follower loads.
   GAMG gets the rigid-body modes of the displacement space as its
   near-nullspace (6 in 3D, 3 in 2D; :func:`rigid_body_modes`), so its coarse
-  spaces represent the motions the tangent barely resists. On a symmetric
-  tangent of degree 2 and up CG is preconditioned by the two-level
-  p-multigrid of :mod:`hyperfem.solver.pmultigrid` instead
+  spaces represent the motions the tangent barely resists. On a tangent of
+  degree 2 and up CG (GMRES with follower loads) is preconditioned by the
+  two-level p-multigrid of :mod:`hyperfem.solver.pmultigrid` instead
   (:data:`~hyperfem.solver.pmultigrid.P_MULTIGRID`: the P\ :sub:`k` tangent
   smoothed, that GAMG on its Galerkin P1 operator);
 * above it, for the mixed problem: FGMRES with a Schur-complement
@@ -619,9 +619,9 @@ def choose_linear_solver(
     configure = None
     if degree >= 2:
         options["snes_lag_preconditioner"] = HIGH_ORDER_LAG
-        if problem.conservative:  # CG: the p-multigrid (GMRES on follower loads keeps GAMG: not measured)
-            options = {k: v for k, v in options.items() if not k.startswith(("pc_", "mg_"))} | P_MULTIGRID
-            configure = _p_multigrid_configure(V)
+        # The p-multigrid, under CG or (follower loads) GMRES.
+        options = {k: v for k, v in options.items() if not k.startswith(("pc_", "mg_"))} | P_MULTIGRID
+        configure = _p_multigrid_configure(V)
     return LinearSolver(
         options, near_nullspace=_near_nullspace_hook(V), configure=configure, matrix_kind=BLOCKED_TANGENT
     )

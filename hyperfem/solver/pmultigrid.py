@@ -57,7 +57,15 @@ tangent (``benchmarks/linear_degree.py --variants iterative gamg direct``,
 bend, serial, quiet machine, ``results/linear_degree_pmg_s35.jsonl``;
 MUMPS in brackets): P2 30.8k 2.60 / 3.01 s, 86.8k 6.79 / 8.15 s; P3 16k
 1.84 / 3.15 s (2.75 s); P4 35.8k 13.9 / 13.1 s (13.0 s; 5 Newton iterations
-against 4); P5 67k 47.8 / 58.7 s (41.0 s). Follower loads (GMRES) keep GAMG.
+against 4); P5 67k 47.8 / 58.7 s (41.0 s). Follower loads take it under
+GMRES: the twist (``--load twist``, serial, p-multigrid / GAMG / MUMPS, two
+interleaved runs, ``results/linear_degree_twist_pmg_s36.jsonl``): P2 30.8k
+3.01–3.76 / 4.16–4.32 / 8.3–8.5 s (85 / 125 GMRES iterations), 86.8k
+7.58–8.86 / 11.3–13.6 / 48–52 s (79 / 116), P3 45k 7.12–9.37 / 11.1–12.3 /
+17.9–19.8 s (133 / 197), the same 6 Newton iterations; on 2 ranks against the
+hand-tuned GMRES + GAMG (``benchmarks/scale.py --case twist --degree 2``,
+``results/issue20_twist_p2_pmg_s36.jsonl``) 1.50–2.30 / 3.18–4.38 s at 28.6k
+and 5.17–5.97 / 13.5–14.7 s at 92k, the test point equal to 3e-14.
 """
 
 from __future__ import annotations
