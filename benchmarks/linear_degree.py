@@ -1,8 +1,8 @@
-"""CG + GAMG against MUMPS for the Newton solve of the bend (or the twist), by displacement degree.
+"""The iterative path against MUMPS for the Newton solve of the bend (or the twist), by displacement degree.
 
-Why the automatic choice keeps LU to larger sizes for P3 and above
-(:data:`hyperfem.solver.linear.HIGH_ORDER_DIRECT_THRESHOLDS`): smoothed
-aggregation needs many more Krylov iterations on high-order tangents. Each
+Where the automatic choice switches from LU to the iterative path for P3 and above
+(:data:`hyperfem.solver.linear.HIGH_ORDER_DIRECT_THRESHOLDS`): high-order tangents
+need many more Krylov iterations. Each
 case solves the full load in one Newton solve, once to compile and once
 timed from u = 0, with each linear solver forced; one JSON line per case.
 
@@ -18,8 +18,9 @@ p-multigrid / GAMG (/ MUMPS), ``results/linear_degree_pmg_s35.jsonl``: P2
 iterations against 4), P5 67k 47.8 / 58.7 / 41.0 s (270 / 324). An earlier
 run (``results/linear_degree_pmg_rigid_s34.jsonl``): P3 1.83 / 2.18 / 2.64,
 P4 11.3 / 12.2 / 13.1, P5 45.5 / 60.8 / 45.4 s.
-The thresholds to MUMPS (:data:`hyperfem.solver.linear.HIGH_ORDER_DIRECT_THRESHOLDS`)
-were measured with GAMG and are kept.
+The thresholds to MUMPS (:data:`hyperfem.solver.linear.HIGH_ORDER_DIRECT_THRESHOLDS`),
+measured with GAMG first, were lowered with the p-multigrid to 10k (P3) and 20k (P4)
+(``results/linear_degree_thresholds_s36.jsonl``; the table is in their docstring).
 
 ``--load twist`` runs the follower twist instead (GMRES; the p-multigrid or, ``gamg``, GAMG
 on P_k). Measured, serial, quiet machine, two interleaved runs,

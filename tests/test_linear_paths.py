@@ -123,7 +123,7 @@ def problem_dofs(problem) -> np.ndarray:
 
 
 def test_high_degrees_keep_lu_to_larger_sizes():
-    """P3-P5 tangents need 135-325 CG iterations per solve: LU up to 20k (P3), 50k (P4) and 150k (P5+) unknowns."""
+    """P4 and P5 keep LU to larger sizes (20k and 150k unknowns); P2 and P3 go iterative from 10k."""
     from dolfinx import mesh as dmesh
 
     from hyperfem.solver.linear import DIRECT_THRESHOLD, HIGH_ORDER_DIRECT_THRESHOLDS, direct_threshold
@@ -137,11 +137,13 @@ def test_high_degrees_keep_lu_to_larger_sizes():
 
     n2, k2, _ = kind([14, 6, 6], 2)  # 14.7k unknowns
     n3, k3, p3 = kind([8, 4, 4], 3)  # 12.7k
-    n4, k4, _ = kind([8, 4, 4], 4)  # 28.6k
+    n4, k4, _ = kind([6, 3, 3], 4)  # 12.7k
+    n5, k5, _ = kind([6, 3, 3], 5)  # 23.8k
     assert DIRECT_THRESHOLD < n2 and k2 == "cg"
-    assert DIRECT_THRESHOLD < n3 < HIGH_ORDER_DIRECT_THRESHOLDS[3] and k3 == "preonly"
+    assert HIGH_ORDER_DIRECT_THRESHOLDS[3] < n3 and k3 == "cg"
     assert DIRECT_THRESHOLD < n4 < HIGH_ORDER_DIRECT_THRESHOLDS[4] and k4 == "preonly"
-    assert [direct_threshold(d) for d in (1, 2)] == [DIRECT_THRESHOLD] * 2
-    assert direct_threshold(5) == direct_threshold(7) > direct_threshold(4) > direct_threshold(3) > DIRECT_THRESHOLD
-    # An explicit threshold still wins (P3 above it: CG).
-    assert choose_linear_solver(p3, threshold=DIRECT_THRESHOLD - 1).options.get("ksp_type") == "cg"
+    assert HIGH_ORDER_DIRECT_THRESHOLDS[4] < n5 < HIGH_ORDER_DIRECT_THRESHOLDS[5] and k5 == "preonly"
+    assert [direct_threshold(d) for d in (1, 2, 3)] == [DIRECT_THRESHOLD] * 3
+    assert direct_threshold(5) == direct_threshold(7) > direct_threshold(4) > direct_threshold(3)
+    # An explicit threshold still wins (P3 below it: LU).
+    assert choose_linear_solver(p3, threshold=n3 + 1).options.get("ksp_type") == "preonly"

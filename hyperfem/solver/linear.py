@@ -186,46 +186,43 @@ times are small: 0.29–0.31 / 0.17–0.18 s at 4.1k, 0.61–0.62 / 0.29 s at
 The threshold does not depend on the number of ranks, so a problem takes the
 same path on any number of them."""
 
-HIGH_ORDER_DIRECT_THRESHOLDS: dict[int, int] = {3: 20_000, 4: 50_000, 5: 150_000}
-"""Unknowns from which a displacement problem of degree 3, 4, and 5 and higher is solved iteratively.
+HIGH_ORDER_DIRECT_THRESHOLDS: dict[int, int] = {3: 10_000, 4: 20_000, 5: 150_000}
+r"""Unknowns from which a displacement problem of degree 3, 4, and 5 and higher is solved iteratively.
 
-Smoothed-aggregation AMG is built for low-order stencils: on P3–P5 it needs
-more CG iterations per solve (135–325 against 50–85 on P1/P2), each on a
-tangent with 450–1,500 nonzeros per row, while the LU factorisation grows
-less than that. Measured with ``benchmarks/linear_degree.py`` (bend, full
-load in one Newton solve after JIT, serial, quiet 2-core machine, both paths
-forced through the threshold; ``results/linear_degree_s32.jsonl``):
+On degree 2 and up the iterative path is the two-level p-multigrid
+(:mod:`hyperfem.solver.pmultigrid`): P3 and P4 need 90–180 CG iterations per
+solve there, P5 270–295, each on a tangent with 450–1,500 nonzeros per row,
+while the LU factorisation grows less than that. Measured with
+``benchmarks/linear_degree.py`` (bend, full load in one Newton solve after
+JIT, serial, quiet 2-core machine, both paths forced through the threshold,
+two interleaved runs; ``results/linear_degree_thresholds_s36.jsonl``):
 
-=====  ========  ==================  ==============
-degree unknowns  CG + GAMG           MUMPS
-=====  ========  ==================  ==============
-P1     12.2k     0.52 s (49 CG its)  1.23 s
-P2     30.8k     3.43 s (83)         7.08 s
-P3     9.2k      1.50 s (142)        1.80 s
-P3     16.1k     3.55 s (138)        3.66 s
-P3     45.1k     10.4 s (135)        14.4 s
-P4     20.4k     8.45 s (201)        7.94 s
-P4     35.8k     16.5 s (189)        15.1 s
-P4     67.3k     28.4 s (192)        31.3 s
-P5     38.2k     27.0 s (271)        22.6 s
-P5     67.4k     64.0 s (324)        54.4 s
-=====  ========  ==================  ==============
+=====  ========  ======================  ============
+degree unknowns  CG + p-multigrid        MUMPS
+=====  ========  ======================  ============
+P3     9.2k      0.75 / 0.75 s (96 CG)   1.27 / 1.28 s
+P3     16.1k     1.45 / 1.36 s (89)      2.51 / 2.38 s
+P4     20.4k     4.50 / 4.25 s (158)     5.57 / 5.49 s
+P4     35.8k     8.93 / 9.48 s (174)     10.7 / 12.0 s
+P4     67.3k     18.4 / 19.1 / 17.9 s    24.5 / 24.6 / 24.5 s
+P5     38.2k     22.7 / 23.1 s (295)     22.4 / 20.6 s
+P5     67.4k     39.0 / 41.0 s (270)     36.3 / 37.9 s
+=====  ========  ======================  ============
 
-Every pair took the same Newton iterations (4; P5 at 67k: 5 and 4). The
-crossovers lie near 16k (P3) and between 36k and 67k (P4); P5 stays on LU
-beyond the sizes measured (at 67k also 57.6 / 49.9 s in a first run), so
-its 150k is a guess that keeps the LU's memory (about 5 GB) inside a laptop.
-On 2 ranks (``mpiexec -n 2 python benchmarks/linear_degree.py``,
-``results/linear_degree_2ranks_s32.jsonl``) CG + GAMG / MUMPS: P3 1.45 /
-1.91 s at 16.1k and 3.36 / 7.43 s at 45.1k, P4 3.37 / 3.76 s at 20.4k and
-6.30 / 7.00 s at 35.8k, P5 19.9 / 13.2 s at 38.2k: the crossovers lie lower
-there, as for P1. The thresholds do not depend on the number of ranks (a
-problem takes the same path on any number of them; see
-:data:`DIRECT_THRESHOLD`).
-The thresholds before the BAIJ tangent and lagged hierarchy were 40k (P3)
-and 150k (P4 and up), when AMG took 30 s on the 35.8k P4 bend against 17 s
-for MUMPS. A P5 bend on ``beam_h1`` had gone from 39 s (MUMPS, before the
-iterative path) to 190 s; it is on MUMPS again."""
+MUMPS took 4 Newton iterations, the p-multigrid 4 (P3, P4 at 20k) or 5.
+P3 is faster iteratively from below 10k, so it shares
+:data:`DIRECT_THRESHOLD`; P4 from 20k; P5 stays on LU beyond the sizes
+measured, and its 150k is a guess that keeps the LU's memory (about 5 GB)
+inside a laptop. The follower twist (GMRES) agrees: P3 at 45k 7.1–9.4 s
+against MUMPS's 17.9–19.8 s (:mod:`hyperfem.solver.pmultigrid`).
+With GAMG on the P\ :sub:`k` tangent (the path before the p-multigrid,
+``results/linear_degree_s32.jsonl``) the crossovers lay near 16k (P3) and
+between 36k and 67k (P4), and the thresholds were 20k and 50k. On 2 ranks
+(``results/linear_degree_2ranks_s32.jsonl``, GAMG) they lay lower, as for
+P1. The thresholds do not depend on the number of ranks (a problem takes the
+same path on any number of them; see :data:`DIRECT_THRESHOLD`). A P5 bend
+on ``beam_h1`` had gone from 39 s (MUMPS, before the iterative path) to
+190 s with AMG on P5; it is on MUMPS."""
 
 
 def direct_threshold(degree: int) -> int:
