@@ -155,7 +155,26 @@ lag 1: 5 set-ups, 184 Krylov iterations; lag 3: 2 set-ups, 192 iterations;
 GAMG set-up time down by 60 %. With the p-multigrid the set-up is cheap and
 the lag matters less: at 100k unknowns on 2 ranks lag 1 took 13.6–16.3 s
 (207 Krylov iterations), lag 3 11.2–14.7 s (209;
-``results/issue20_pmg_rigid_s34.jsonl``)."""
+``results/issue20_pmg_rigid_s34.jsonl``).
+
+With mesh contact (two bodies pressed together, ``SurfaceContact``) the
+Krylov count rises, and it is the displacement block's preconditioner, not
+the Schur approximation: on the stacked blocks of
+``tests/test_contact_surfaces.py`` (h = 1.0 / 0.6, 1,000 unknowns, pushed
+0.2 in 4 steps, serial) the split took about 4,850 Krylov iterations in 35 Newton
+iterations, with LU on the ``u`` block about 790 (20 per Newton iteration,
+contact or not). One Chebyshev step with point-block Jacobi does not smooth
+what the barrier couples across the interface stiffly (two surface nodes
+moving together: a small eigenvalue of :math:`D^{-1}K_{uu}` that the P1 level
+cannot represent). SOR smoothing (``fieldsplit_u_mg_levels_pc_type sor``)
+gave 1,719, ILU 1,516, three V-cycles 2,770, and an exact solve on the
+contact surface's dofs around the V-cycle 2,104. In time: at 7.2k unknowns
+70 s (default, two solves at the 2,000-iteration limit) against 35 s (SOR),
+28 s (the surface solve) and 16 s (LU of the whole tangent); at 19.4k 125 s
+against 145 s (SOR), 139 s (surface solve) and 166 s (LU): there the
+Newton iterations (52–116 for 4 steps, most of them in the step of first
+contact, where the barrier's tangent switches between exact and projected)
+cost more than the Krylov ones. The defaults are kept."""
 
 HIGH_ORDER_LAG = 5
 """``snes_lag_preconditioner`` of the iterative path for displacement degree 2 and higher (P1: 2).
