@@ -8,7 +8,7 @@ timed from u = 0, with each linear solver forced; one JSON line per case.
 
     python benchmarks/linear_degree.py [--cases 1:0.35 2:0.5 3:1 3:0.7 4:1 5:1] [--output FILE]
 
-On degree 2 and up the iterative path is CG + the two-level p-multigrid
+On degree 2 and up the iterative path is CG (GMRES for the twist) + the two-level p-multigrid
 (:mod:`hyperfem.solver.pmultigrid`: P_k smoothed, GAMG with the rigid-body
 modes on the Galerkin P1 operator); ``--variants gamg`` forces CG + GAMG on
 the P_k tangent, the path before. Measured, serial, quiet machine,
@@ -59,7 +59,7 @@ def run(domain, degree: int, variant: str, load: str = "bend") -> dict:
     # configuration (the iterative path's lag would otherwise lag the factorisation too).
     threshold = 2**62 if variant == "direct" else 0
     linear = choose_linear_solver(problem, threshold=threshold)
-    if variant == "gamg":  # CG + GAMG on the P_k tangent (the iterative path before the p-multigrid)
+    if variant == "gamg":  # CG (GMRES) + GAMG on the P_k tangent (the iterative path before the p-multigrid)
         from dataclasses import replace
 
         from hyperfem.solver.linear import SYMMETRIC_ITERATIVE
@@ -104,7 +104,7 @@ def main() -> None:
         nargs="+",
         default=["iterative", "direct"],
         choices=["iterative", "direct", "gamg"],
-        help="the automatic iterative path, MUMPS, CG + GAMG on the P_k tangent",
+        help="the automatic iterative path, MUMPS, CG (GMRES) + GAMG on the P_k tangent",
     )
     p.add_argument("--load", choices=["bend", "twist"], default="bend", help="the dead bend or the follower twist")
     args = p.parse_args()

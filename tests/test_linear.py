@@ -1,6 +1,6 @@
 """The linear-solver layer: automatic choice, rigid-body near-nullspace, iterative = direct.
 
-The iterative path (CG/GMRES + GAMG) is what large problems get; here it is
+The iterative path (CG/GMRES + GAMG, or the p-multigrid from P2) is what large problems get; here it is
 forced on small meshes (``threshold=0``) and compared with MUMPS LU on the
 same problem: the Newton solutions agree to the nonlinear tolerance, serially
 and on 2 ranks.

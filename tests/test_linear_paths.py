@@ -28,7 +28,7 @@ import hyperfem as hf
 from hyperfem.cases import CantileverSpec
 from hyperfem.kinematics import isochoric_invariants
 from hyperfem.problem import SplitEnergy, solid_problem
-from hyperfem.solver.linear import DIRECT, choose_linear_solver
+from hyperfem.solver.linear import DIRECT, choose_linear_solver, describe
 
 MESHES = Path(__file__).resolve().parent.parent / "meshes"
 PARAMS = CantileverSpec().lame
@@ -67,6 +67,7 @@ CASES = {
     "P2-follower-tiny": ("beam_h1", _bend, 2, True, 1e-3),
     "P2-follower-tinier": ("beam_h1", _bend, 2, True, 1e-4),
     "P2-follower-full": ("beam_h2", _bend, 2, True, 1.0),
+    "P3-follower-full": ("beam_h2", _bend, 3, True, 1.0),
     "mixed-dead-tiny": ("beam_h1", _mixed_bend, 2, False, 1e-3),
     "mixed-dead-full": ("beam_h2", _mixed_bend, 2, False, 1.0),
 }
@@ -122,8 +123,8 @@ def problem_dofs(problem) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0, dtype=np.int32)
 
 
-def test_high_degrees_keep_lu_to_larger_sizes():
-    """P4 and P5 keep LU to larger sizes (20k and 150k unknowns); P2 and P3 go iterative from 10k."""
+def test_degree_thresholds():
+    """P2 and P3 go iterative (the p-multigrid) from 10k unknowns, P4 from 20k; P5 keeps LU to 150k."""
     from dolfinx import mesh as dmesh
 
     from hyperfem.solver.linear import DIRECT_THRESHOLD, HIGH_ORDER_DIRECT_THRESHOLDS, direct_threshold
@@ -138,10 +139,13 @@ def test_high_degrees_keep_lu_to_larger_sizes():
     n2, k2, _ = kind([14, 6, 6], 2)  # 14.7k unknowns
     n3, k3, p3 = kind([8, 4, 4], 3)  # 12.7k
     n4, k4, _ = kind([6, 3, 3], 4)  # 12.7k
+    m4, j4, _ = kind([8, 4, 4], 4)  # 28.6k
     n5, k5, _ = kind([6, 3, 3], 5)  # 23.8k
     assert DIRECT_THRESHOLD < n2 and k2 == "cg"
     assert HIGH_ORDER_DIRECT_THRESHOLDS[3] < n3 and k3 == "cg"
+    assert describe(choose_linear_solver(p3).options) == "cg+pmg"
     assert DIRECT_THRESHOLD < n4 < HIGH_ORDER_DIRECT_THRESHOLDS[4] and k4 == "preonly"
+    assert HIGH_ORDER_DIRECT_THRESHOLDS[4] < m4 < 50_000 and j4 == "cg"  # LU to 50k before the p-multigrid
     assert HIGH_ORDER_DIRECT_THRESHOLDS[4] < n5 < HIGH_ORDER_DIRECT_THRESHOLDS[5] and k5 == "preonly"
     assert [direct_threshold(d) for d in (1, 2, 3)] == [DIRECT_THRESHOLD] * 3
     assert direct_threshold(5) == direct_threshold(7) > direct_threshold(4) > direct_threshold(3)

@@ -9,7 +9,8 @@
   exact filter's geometry), :mod:`~hyperfem.solver.roundoff` (the round-off stop)
   and :mod:`~hyperfem.solver.predictor` (the boundary-increment predictor);
 * :mod:`~hyperfem.solver.linear` — :class:`LinearSolver` and the automatic choice
-  (MUMPS LU, or CG/GMRES + GAMG with rigid-body modes);
+  (MUMPS LU, or CG/GMRES + GAMG with rigid-body modes, the two-level p-multigrid of
+  :mod:`~hyperfem.solver.pmultigrid` from P2, a Schur field split for the mixed problem);
 * :mod:`~hyperfem.solver.constraints` — do the Dirichlet conditions fix every rigid motion;
 * :mod:`~hyperfem.solver.stepping` — :class:`StepPolicy` acting on a stage
   (quasi-static or dynamic), :func:`solve_quasistatic`.

@@ -187,7 +187,16 @@ snes_lag_preconditioner=N``, 92k unknowns, quiet 2-core machine, two runs
 each): bend serial 13.3–13.8 s with lag 2 vs 11.0–12.2 s with 5 (94 vs 97 CG
 iterations), twist 15.8–16.1 vs 13.8–14.6 s, bend on 2 ranks 6.4–6.7 vs
 5.7–6.2 s, same Newton iterations and test point. On P1 the lag of 5 costs a
-Newton iteration (bend 92k: 4 → 5, 4.7 → 5.0 s), so P1 keeps 2."""
+Newton iteration (bend 92k: 4 → 5, 4.7 → 5.0 s), so P1 keeps 2.
+
+Measured again on the p-multigrid, whose set-up is cheap (0.1–0.6 s per
+solve): lag 1 against 5, serial, beam meshes, two interleaved runs — bend P2
+30.8k 1.74–1.75 vs 2.01–2.03 s and P4 35.8k 8.02–8.03 vs 9.49–10.48 s (4
+Newton iterations against 5), P3 16k 1.41–1.46 vs 1.31–1.41 s, twist P2
+30.8k 2.99–3.04 vs 2.58–2.76 s, twist P3 45k 7.36–7.56 vs 6.76–7.28 s; on 2
+ranks the bend P2 (``benchmarks/scale.py --petsc snes_lag_preconditioner=1``)
+1.02–1.03 vs 0.87–0.96 s at 28.6k and 3.24–3.57 vs 3.15 s at 92k (4 Newton
+iterations either way). The lag stays 5."""
 
 DIRECT_THRESHOLD = 10_000
 """Unknowns from which a displacement problem is solved iteratively.
@@ -230,7 +239,8 @@ P5     67.4k     39.0 / 41.0 s (270)     36.3 / 37.9 s
 
 MUMPS took 4 Newton iterations, the p-multigrid 4 (P3, P4 at 20k) or 5.
 P3 is faster iteratively from below 10k, so it shares
-:data:`DIRECT_THRESHOLD`; P4 from 20k; P5 stays on LU beyond the sizes
+:data:`DIRECT_THRESHOLD`; P4 from 20k (the smallest P4 size measured, already
+faster); P5 stays on LU beyond the sizes
 measured, and its 150k is a guess that keeps the LU's memory (about 5 GB)
 inside a laptop. The follower twist (GMRES) agrees: P3 at 45k 7.1–9.4 s
 against MUMPS's 17.9–19.8 s (:mod:`hyperfem.solver.pmultigrid`).
@@ -247,7 +257,7 @@ on ``beam_h1`` had gone from 39 s (MUMPS, before the iterative path) to
 def direct_threshold(degree: int) -> int:
     """Unknowns from which a displacement problem of polynomial degree ``degree`` is solved iteratively.
 
-    :data:`DIRECT_THRESHOLD` for P1 and P2, :data:`HIGH_ORDER_DIRECT_THRESHOLDS` above.
+    :data:`DIRECT_THRESHOLD` for P1 and P2, :data:`HIGH_ORDER_DIRECT_THRESHOLDS` above (P3's is the same).
     """
     if degree < 3:
         return DIRECT_THRESHOLD
@@ -612,7 +622,7 @@ def choose_linear_solver(
     Args:
         problem: A :class:`~hyperfem.problem.protocol.SolidProblem`.
         threshold: Unknowns from which a displacement problem is solved iteratively
-            (the default rises with the degree: :data:`HIGH_ORDER_DIRECT_THRESHOLDS`).
+            (the default rises with the degree from P4: :data:`HIGH_ORDER_DIRECT_THRESHOLDS`).
         mixed_threshold: Unknowns from which the mixed problem is solved iteratively.
     """
     W = problem.u.function_space
@@ -627,7 +637,7 @@ def choose_linear_solver(
             configure=_fieldsplit_configure(problem, base),
         )
     degree = V.ufl_element().embedded_superdegree
-    if threshold is None:  # by degree: AMG needs far more Krylov iterations on P3 and above
+    if threshold is None:  # by degree: P4 and up keep LU longer (their tangents are dense)
         threshold = direct_threshold(degree)
     if _global_size(W) < threshold:
         return LinearSolver()
