@@ -46,6 +46,14 @@ def _bend(domain, degree: int, follower: bool):
     )
 
 
+def _twist(domain, degree: int, follower: bool):
+    """The twist of the issue's cantilever: a follower traction, a markedly non-symmetric tangent."""
+    from hyperfem.cases import twist_load
+
+    assert follower
+    return hf.HyperelasticProblem(domain, _neo_hookean, degree=degree, bcs=[hf.Clamp("clamped")], loads=[twist_load()])
+
+
 def _mixed_bend(domain, degree: int, follower: bool):
     iso = lambda F: 0.5 * PARAMS.mu * (isochoric_invariants(F)[0] - 3.0)  # noqa: E731
     load = hf.FollowerTraction if follower else hf.DeadTraction
@@ -68,6 +76,7 @@ CASES = {
     "P2-follower-tinier": ("beam_h1", _bend, 2, True, 1e-4),
     "P2-follower-full": ("beam_h2", _bend, 2, True, 1.0),
     "P3-follower-full": ("beam_h2", _bend, 3, True, 1.0),
+    "P2-twist-full": ("beam_h2", _twist, 2, True, 1.0),
     "mixed-dead-tiny": ("beam_h1", _mixed_bend, 2, False, 1e-3),
     "mixed-dead-full": ("beam_h2", _mixed_bend, 2, False, 1.0),
 }
