@@ -262,6 +262,19 @@ class TwoLevel:
         smoother.setInitialGuessNonzero(True)
         smoother.solve(x, y)
 
+    def destroy(self, pc: PETSc.PC) -> None:
+        """Free the PETSc objects of this cycle collectively, where PETSc destroys the preconditioner.
+
+        Left to Python's garbage collector they reached PETSc's garbage list and a later
+        ``PETSc.garbage_cleanup`` of 2 ranks could block there. The interpolation belongs to the levels.
+        """
+        for obj in (self._coarse_matrix, self._smoother, self._coarse, self._modes, *(self._work or ())):
+            if obj is not None:
+                obj.destroy()
+        self._coarse_matrix = self._smoother = self._coarse = self._modes = None
+        self._work = None
+        self._P = None
+
     def view(self, pc: PETSc.PC, viewer: PETSc.Viewer | None = None) -> None:
         """What ``-ksp_view`` prints: the levels' sizes and the coarse solver."""
         if self._P is None or viewer is None:
