@@ -24,7 +24,11 @@ search, filters and contact terms.
 the pairs counted once since they are cached per state) over the elastic
 ones.
 
-    python benchmarks/contact_mesh.py [--sizes 10 20 40] [--repeat 3]
+``--degree 2`` takes P2 tetrahedra, whose surface goes through the collision
+proxy (:mod:`hyperfem.contact.proxy`; ``--subdivision``, default the
+library's): ``collision_vertices`` against ``surface_vertices`` (the nodes).
+
+    python benchmarks/contact_mesh.py [--sizes 10 20 40] [--repeat 3] [--degree 2] [--subdivision 1]
     mpiexec -n 2 python benchmarks/contact_mesh.py
 """
 
@@ -61,15 +65,16 @@ def _best(function, repeat: int) -> float:
     return MPI.COMM_WORLD.allreduce(best, op=MPI.MAX)
 
 
-def measure(n: int, repeat: int) -> dict:
+def measure(n: int, repeat: int, degree: int = 1, subdivision: int | None = None) -> dict:
     comm = MPI.COMM_WORLD
     mesh = dmesh.create_unit_cube(comm, n, n, n)
     groups = {"surface": lambda x: np.full(x.shape[1], True), "top": lambda x: np.isclose(x[2], 1.0)}
     domain = hf.Domain.from_locators(mesh, groups, source=f"cube({n})")
     bcs = [hf.PrescribedDisplacement("top", [0.0, 0.0, -0.01])]
-    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs)
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs, degree=degree)
     plate = np.array([[-1.0, -1.0, -DHAT / 2], [3.0, -1.0, -DHAT / 2], [3.0, 3.0, -DHAT / 2], [-1.0, 3.0, -DHAT / 2]])
-    tool = ToolContact.from_arrays(["surface"], plate, np.array([[0, 1, 2], [0, 2, 3]]), dhat=DHAT).bind(problem)
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    tool = ToolContact.from_arrays(["surface"], plate, triangles, dhat=DHAT, subdivision=subdivision).bind(problem)
     solver = hf.NewtonSolver(problem, external_energies=[tool])
     u = problem.u.x.array
     nlp = solver._nlp
@@ -135,9 +140,11 @@ def measure(n: int, repeat: int) -> dict:
     W = problem.u.function_space
     return {
         "n": n,
+        "degree": degree,
         "ranks": comm.size,
         "unknowns": W.dofmap.index_map.size_global * W.dofmap.index_map_bs,
         "surface_vertices": tool.surface.size,
+        "collision_vertices": tool.surface.collision_size,
         "active_pairs": tool.active_count(),
         "seconds": {k: round(v, 5) for k, v in timings.items()},
         "contact": round(contact, 5),
@@ -150,9 +157,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 20, 40])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--degree", type=int, default=1)
+    parser.add_argument("--subdivision", type=int, default=None)
     args = parser.parse_args()
     for n in args.sizes:
-        result = measure(n, args.repeat)
+        result = measure(n, args.repeat, args.degree, args.subdivision)
         if MPI.COMM_WORLD.rank == 0:
             print(json.dumps(result), flush=True)
 

@@ -462,8 +462,9 @@ def test_tool_contact_case_presses_the_block_on_an_stl_plate(shared_tmp):
 
 
 def test_surface_contact_keys_reach_the_script(shared_tmp):
-    """self, pair and tool keys (safety, name, motion, profile, offset, scale) become the API's keywords."""
-    self_contact = '[[contact]]\ntype = "self"\nboundaries = ["upper_top"]\nsafety = 0.5\nname = "folds"\n'
+    """self, pair and tool keys (safety, name, subdivision, motion, profile, offset, scale) become API keywords."""
+    self_contact = ('[[contact]]\ntype = "self"\nboundaries = ["upper_top"]\nsafety = 0.5\nname = "folds"\n'
+                    'subdivision = 3\n')
     tool = ('[[contact]]\ntype = "tool"\nboundaries = ["upper_top"]\nfile = "plate.stl"\nmotion = [0.0, 0.0, 0.1]\n'
             'profile = "steady"\noffset = [0.0, 0.0, 2.0]\nscale = 0.5\nstiffness = 10.0\n')
     path = _write_pair(shared_tmp, PAIR.replace("[stepping]", self_contact + tool + "[stepping]"))
@@ -473,7 +474,7 @@ def test_surface_contact_keys_reach_the_script(shared_tmp):
     text = script(case)
     flat = " ".join(text.split()).replace("( ", "(").replace(", )", ")")  # the call on one line
     assert "contact_0 = SurfaceContact(['lower_top', 'upper_bottom'], dhat=0.001, name='contact_0')" in flat
-    assert "contact_1 = SurfaceContact(['upper_top'], safety=0.5, name='folds').bind(problem)" in flat
+    assert "contact_1 = SurfaceContact(['upper_top'], safety=0.5, subdivision=3, name='folds').bind(problem)" in flat
     assert ("contact_2 = ToolContact(['upper_top'], file=case_dir / 'plate.stl', motion=(0.0, 0.0, 0.1), "
             "profile=Steady(1.0), offset=(0.0, 0.0, 2.0), scale=0.5, stiffness=10.0, name='contact_2')") in flat
     assert "external_energies=[contact_0, contact_1, contact_2]" in text
@@ -493,11 +494,13 @@ def test_surface_contact_keys_reach_the_script(shared_tmp):
         ('friction = -0.3', "contact[0].friction: must be >= 0"),
         ('safety = 1.0', "contact[0].safety: must be < 1, got 1.0"),
         ('name = "a b"', "contact[0].name: use letters, digits and _.+- only"),
+        ('subdivision = 0', "contact[0].subdivision: must be >= 1, got 0"),
+        ('subdivision = 9', "contact[0].subdivision: must be < 9, got 9"),
     ],
 )
 def test_bad_pair_entries_are_one_line(shared_tmp, change, expected):
     text = PAIR.replace('boundaries = ["lower_top", "upper_bottom"]\n', change + "\n", 1)
-    if change.startswith(("friction", "safety", "name")):
+    if change.startswith(("friction", "safety", "name", "subdivision")):
         text = PAIR.replace("dhat = 1e-3\n", f"dhat = 1e-3\n{change}\n", 1)
     with pytest.raises(CaseFileError) as info:
         load_case(_write_pair(shared_tmp, text))

@@ -81,7 +81,9 @@ def _squares(comm, n_lower: int, n_upper: int, cell: str = "triangle", degree: i
     return hf.Domain.from_locators(mesh, groups, source=f"two {cell} squares")
 
 
-def _stacked(comm=MPI.COMM_WORLD, cell="triangle", n=(4, 3), degree=1, delta=0.2, boundaries=None, domain=None):
+def _stacked(
+    comm=MPI.COMM_WORLD, cell="triangle", n=(4, 3), degree=1, delta=0.2, boundaries=None, domain=None, subdivision=None
+):
     domain = domain or _squares(comm, *n, cell=cell)
     bcs = [
         hf.PrescribedDisplacement("x0", [0.0], components=[0]),
@@ -89,7 +91,8 @@ def _stacked(comm=MPI.COMM_WORLD, cell="triangle", n=(4, 3), degree=1, delta=0.2
         hf.PrescribedDisplacement("upper_top", [-delta], components=[1]),
     ]
     problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS), bcs=bcs, degree=degree)
-    contact = SurfaceContact(boundaries or ["lower_top", "upper_bottom"], dhat=DHAT).bind(problem)
+    contact = SurfaceContact(boundaries or ["lower_top", "upper_bottom"], dhat=DHAT, subdivision=subdivision)
+    contact = contact.bind(problem)
     solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
     iterates = _watch(solver, contact)
     hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.25, max_increment=0.25))
@@ -166,12 +169,14 @@ def test_a_body_driven_onto_another_from_afar_closes_in_the_steps_asked_for():
 
 
 @pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
-def test_degree_two_edges_balance_the_reaction(cell):
+@pytest.mark.parametrize(("subdivision", "low", "high"), [(1, 0.015, 0.04), (None, 0.0, 4e-3)])
+def test_degree_two_edges_balance_the_reaction(cell, subdivision, low, high):
     """Degree 2: a boundary edge is two segments through its midpoint node; equilibrium holds to 1e-8 and nothing
-    intersects. The force is 2.2 % (P2 triangles) and 3.0 % (Q2) below |P_yy| (measured, 2 x 2 below, 1 x 1 above):
-    the nodal barrier on quadratic edges does not carry a uniform pressure (3D: P2 tetrahedra ~3 %, Q2 5.9 %)."""
+    intersects. On the nodes the force is 2.2 % (P2 triangles) and 3.0 % (Q2) below |P_yy| (measured, 2 x 2 below,
+    1 x 1 above): the nodal barrier on quadratic edges does not carry a uniform pressure. Through the default
+    collision proxy (an edge in 4 segments, hyperfem.contact.proxy) 0.15 % and 0.14 %."""
     delta = 0.2
-    problem, contact, iterates = _stacked(cell=cell, n=(2, 1), degree=2, delta=delta)
+    problem, contact, iterates = _stacked(cell=cell, n=(2, 1), degree=2, delta=delta, subdivision=subdivision)
     reaction = ReactionForce(problem, "upper_top")()
     assert contact.force(group=0)[1] == pytest.approx(reaction[1], rel=1e-8) and reaction[1] < 0.0
     surface = contact.surface
@@ -179,7 +184,7 @@ def test_degree_two_edges_balance_the_reaction(cell):
     x = surface.positions(problem.u.x.array)
     lower, upper = x[surface.group == 0, 1], x[surface.group == 1, 1]
     stretch = (2.0 + GAP - delta - (upper.mean() - lower.mean())) / 2.0
-    assert -reaction[1] == pytest.approx(-_plane_strain_pyy(stretch), rel=0.05)
+    assert low <= abs(reaction[1] / _plane_strain_pyy(stretch) - 1.0) < high
     assert min(iterates) > 0.0 and 0.0 < contact.min_distance() < DHAT and not contact.intersecting()
 
 

@@ -625,7 +625,7 @@ def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
                 kwargs[key] = getattr(contact, key)
         if contact.rotation is not None:
             kwargs["rotation"] = _rotation(contact)
-    for key in ("dhat", "stiffness", "safety"):
+    for key in ("dhat", "stiffness", "safety", "subdivision"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
     if contact.friction > 0.0:

@@ -496,6 +496,11 @@ def _surface_keys(default_name: str) -> dict[str, Key]:
         "friction_epsilon": Key("number", above=0.0, example=1.0e-4,
                                 help="friction's slip length in m below which a pair sticks elastically; "
                                 "default 0.1 dhat"),
+        "subdivision": Key("integer", minimum=1, below=9, example=2,
+                           help="the collision proxy: the barrier acts on a lattice of points that follow each "
+                           "facet's shape functions, a facet edge cut into degree x subdivision segments (1: on the "
+                           "nodes); default 2 for degree-2 displacements (whose corner nodes carry no load under a "
+                           "uniform pressure), 1 for degree 1 (hyperfem.contact.proxy)"),
     }
 
 
@@ -1481,6 +1486,7 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
         tolerance=values.get("tolerance"),
         friction=values.get("friction", 0.0),
         friction_epsilon=values.get("friction_epsilon"),
+        subdivision=values.get("subdivision"),
     )
 
 

@@ -300,6 +300,7 @@ class ContactSpec:
         axis: The cylinder's axis direction; ``None`` otherwise.
         friction: Coulomb coefficient (0: frictionless).
         friction_epsilon: Friction's slip length, or ``None`` (the library default).
+        subdivision: A surface contact's collision proxy, or ``None`` (the library default).
     """
 
     key: str
@@ -325,6 +326,7 @@ class ContactSpec:
     axis: tuple[float, ...] | None = None
     path: Waypoints | None = None
     rotation: ContactRotationSpec | None = None
+    subdivision: int | None = None
 
 
 @dataclass(frozen=True)

@@ -40,8 +40,8 @@ from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.defaults import DHAT_FRACTION, STIFFNESS_FACTOR, mean_tangent_diagonal
 from hyperfem.contact.mesh_barrier import MeshBarrier
 from hyperfem.contact.nodes import facet_size
-from hyperfem.contact.settings import check_boundaries, check_contact_settings
-from hyperfem.contact.surface import contact_surface
+from hyperfem.contact.settings import check_boundaries, check_contact_settings, check_subdivision
+from hyperfem.contact.surface import ContactSurface, contact_surface
 from hyperfem.loading.profiles import linear_profile
 from hyperfem.problem.protocol import SolidProblem
 
@@ -49,19 +49,23 @@ __all__ = ["SurfaceContact", "surface_defaults"]
 
 
 def surface_defaults(
-    problem: SolidProblem, boundaries: Sequence[str], dofs: np.ndarray, dhat: float | None, stiffness: float | None
+    problem: SolidProblem, boundaries: Sequence[str], surface: ContactSurface, dhat: float | None,
+    stiffness: float | None
 ) -> tuple[float, float]:
     r"""The barrier width and ``ipctk`` stiffness of a mesh contact: the given ones, or the defaults (collective).
 
     :math:`\hat d` = :data:`~hyperfem.contact.defaults.DHAT_FRACTION` times the smallest mean facet size
     of the groups; :math:`\kappa = \bar k/(2\hat d^2)` with :math:`\bar k` the mean tangent diagonal at the
-    surface nodes (:mod:`~hyperfem.contact.mesh_barrier` says why).
+    surface nodes (:mod:`~hyperfem.contact.mesh_barrier` says why), times nodes per collision vertex where a
+    collision proxy has more vertices than nodes (:mod:`~hyperfem.contact.proxy`): the same pressure at the
+    same gap with or without one.
     """
     if dhat is None:
         dhat = DHAT_FRACTION * min(facet_size(problem.domain, name) for name in boundaries)
     if stiffness is None:
+        dofs = surface.dofs
         k = mean_tangent_diagonal(problem, dofs, np.full(dofs.shape[1], 1.0 / dofs.shape[1]))
-        stiffness = STIFFNESS_FACTOR * k / (2.0 * dhat * dhat)
+        stiffness = STIFFNESS_FACTOR * k / (2.0 * dhat * dhat) * surface.size / surface.collision_size
     return float(dhat), float(stiffness)
 
 
@@ -80,6 +84,11 @@ class SurfaceContact:
         friction_epsilon: The slip length :math:`\epsilon > 0` below which a pair sticks elastically
             (``None``: :math:`0.1\,\hat d`).
         name: Prefix of the output columns (``contact_force``, ...).
+        subdivision: 1: the barrier acts on the facets' nodes; :math:`s > 1`: on a finer collision proxy whose
+            vertices follow the facets' shape functions (a facet edge in ``degree * s`` segments;
+            :mod:`~hyperfem.contact.proxy`), for P2/Q2 surfaces, whose corner nodes carry no load under a
+            uniform pressure. ``None``: :data:`~hyperfem.contact.proxy.DEFAULT_SUBDIVISION` for degree 2, 1 for
+            degree 1.
 
     Raises:
         ParameterError: A bad entry (one line), no boundary, a boundary named twice,
@@ -93,10 +102,12 @@ class SurfaceContact:
     name: str = "contact"
     friction: float = 0.0
     friction_epsilon: float | None = None
+    subdivision: int | None = None
 
     def __post_init__(self) -> None:
         names, where = check_boundaries(self.boundaries, "SurfaceContact")
         object.__setattr__(self, "boundaries", tuple(names))
+        check_subdivision(self.subdivision, where)
         check_contact_settings(
             where, dhat=self.dhat, stiffness=self.stiffness, safety=self.safety, friction=self.friction,
             friction_epsilon=self.friction_epsilon, profile=linear_profile, name=self.name,
@@ -115,8 +126,8 @@ class SurfaceContact:
             ParameterError: Not a degree-1/2 problem on tetrahedra or hexahedra (3D) or triangles or quadrilaterals
                 (2D), or the surfaces start touching or intersecting (the message says where).
         """
-        surface = contact_surface(problem, self.boundaries, self.where)
-        dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
+        surface = contact_surface(problem, self.boundaries, self.where, self.subdivision)
+        dhat, stiffness = surface_defaults(problem, self.boundaries, surface, self.dhat, self.stiffness)
         return MeshBarrier(
             self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
             friction=self.friction, friction_epsilon=self.friction_epsilon

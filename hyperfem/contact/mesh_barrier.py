@@ -60,6 +60,13 @@ energy, gradient and (projected) Hessian. Checked: a block on a rough plate
 pushed by half :math:`\mu N` holds it to 1e-8, dragged it slides at
 :math:`\mu N` to 0.03 %.
 
+**Collision proxy.** Where the surface has one (degree 2 by default,
+:mod:`~hyperfem.contact.proxy`), the collision mesh's vertices are
+:math:`y = W x` of the surface nodes: the pairs, the barrier, the friction and
+the collision filters act on :math:`y`, and the gradient and Hessian come back
+to the nodes as :math:`W^T g` and :math:`W^T H W` (per component; the tool's
+vertices are their own).
+
 **Step filter** (:class:`MeshCollisionFilter`): ``ipctk``'s continuous
 collision detection of the linear trajectory from the iterate to the full
 Newton step, with ``AdditiveCCD`` (TightInclusion, the default, is
@@ -86,6 +93,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -292,9 +300,9 @@ class MeshBarrier:
         check_dhat_fits(problem, self.dhat, where)
         self.stiffness = float(stiffness)
         self.tool = tool
-        n = surface.size
-        faces = surface.faces
-        rest = surface.X
+        n = surface.collision_size
+        faces = surface.collision_faces
+        rest = surface.to_collision(surface.X)
         if tool is not None:
             faces = np.vstack([faces, tool.faces + n])
             rest = np.vstack([rest, tool.vertices(problem.time)])
@@ -313,6 +321,11 @@ class MeshBarrier:
         tool_dofs = 0 if tool is None else self.dim * len(tool.points)
         self._global = np.concatenate([surface.global_dofs.ravel(), np.full(tool_dofs, -1, dtype=np.int64)])
         self._fixed = np.concatenate([surface.constrained.ravel(), np.ones(tool_dofs, dtype=bool)])
+        # The collision dofs' map to the nodes' (the proxy's W per component; the tool's vertices are their own).
+        self._expand: sp.csr_matrix | None = None
+        if surface.proxy_map is not None:
+            blocks = [surface.proxy_map] + ([] if tool is None else [sp.identity(len(tool.points), format="csr")])
+            self._expand = sp.kron(sp.block_diag(blocks, format="csr"), sp.identity(self.dim), format="csr")
         own = (self.dim * surface.rows[:, None] + np.arange(self.dim)).ravel()
         self._own = np.zeros(len(self._global), dtype=bool)
         self._own[own] = True
@@ -367,8 +380,18 @@ class MeshBarrier:
 
     def vertices(self, u: np.ndarray) -> np.ndarray:
         """The collision mesh's vertices for the unknown's local array ``u`` (collective)."""
-        body = self.surface.positions(u)
+        body = self.surface.to_collision(self.surface.positions(u))
         return body if self._tool_now is None else np.vstack([body, self._tool_now])
+
+    def _to_nodes(self, g: np.ndarray) -> np.ndarray:
+        """A gradient over the collision mesh's dofs as one over the nodes' (and the tool's), flat."""
+        return g if self._expand is None else np.asarray(self._expand.T @ g)
+
+    def _pair_nodes(self, pair: Any) -> list[int]:
+        """The surface nodes of a pair's collision vertices (the tool's left out)."""
+        body = self.surface.collision_size
+        ids = [int(v) for v in pair.vertex_ids(self.mesh.edges, self.mesh.faces) if 0 <= v < body]
+        return self.surface.collision_nodes(ids)
 
     def _collisions(self, V: np.ndarray) -> Any:
         """The pairs closer than :math:`\\hat d` at the vertices ``V`` (cached for the last ``V``)."""
@@ -423,7 +446,7 @@ class MeshBarrier:
         slip = self._slip(u)
         if slip is None:
             return np.zeros(self.dim * (self.surface.size + (0 if self.tool is None else len(self.tool.points))))
-        return np.asarray(self._friction.gradient(slip[0], self.mesh, slip[1])).ravel()  # type: ignore[union-attr, unused-ignore]
+        return self._to_nodes(np.asarray(self._friction.gradient(slip[0], self.mesh, slip[1])).ravel())  # type: ignore[union-attr, unused-ignore]
 
     def friction_force(self, u: np.ndarray | PETSc.Vec | None = None, group: int | None = None) -> np.ndarray:
         r"""The friction force on the body's surface nodes (of one group), :math:`-\sum_a \partial D/\partial x_a`.
@@ -455,8 +478,8 @@ class MeshBarrier:
         V = self.vertices(u)
         collisions = self._collisions(V)
         if not len(collisions):
-            return np.zeros(V.size)
-        return np.asarray(self.potential.gradient(collisions, self.mesh, _f(V))).ravel()
+            return np.zeros(self._global.size)
+        return self._to_nodes(np.asarray(self.potential.gradient(collisions, self.mesh, _f(V))).ravel())
 
     def _own_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The barrier's and the friction's gradient at this rank's owned surface nodes, not interpolated."""
@@ -508,6 +531,8 @@ class MeshBarrier:
         slip = self._slip(u)
         if slip is not None:  # the friction's Hessian, projected (ipctk's is indefinite where the slip is large)
             H = H + self._friction.hessian(slip[0], self.mesh, slip[1], method.CLAMP)  # type: ignore[union-attr, unused-ignore]
+        if self._expand is not None:  # W^T H W per component
+            H = self._expand.T @ (H @ self._expand)
         H = H.tocoo()
         keep = self._own[H.row] & ~self._fixed[H.row] & ~self._fixed[H.col] & (H.data != 0.0)
         values = np.asarray(H.data[keep], dtype=float) * self._interpolation.weight  # 1 - alpha_f in a g-alpha step
@@ -576,7 +601,7 @@ class MeshBarrier:
         total = np.zeros((n, self.dim))
         count = np.zeros(n)
         for k in range(len(collisions)):
-            ids = [int(v) for v in collisions[k].vertex_ids(self.mesh.edges, self.mesh.faces) if 0 <= v < n]
+            ids = self._pair_nodes(collisions[k])
             pushers = [v for v in ids if moving[v]]
             if not pushers:
                 continue
@@ -597,8 +622,8 @@ class MeshBarrier:
         1 where no two primitives meet on the way (come within 0.1 % of their
         distance, :data:`SWEEP_RESCALING`), else the fraction before they do.
         """
-        V0 = self.surface.positions(u_from)
-        V1 = self.surface.positions(u)
+        V0 = self.surface.to_collision(self.surface.positions(u_from))
+        V1 = self.surface.to_collision(self.surface.positions(u))
         if self.tool is not None:
             V0 = np.vstack([V0, self.tool.vertices(obstacle_time(self.problem, t_from))])
             V1 = np.vstack([V1, self.tool.vertices(self.time)])
@@ -714,12 +739,13 @@ class MeshBarrier:
         """
         V = self.vertices(self._state(u))
         collisions = self._collisions(V)
-        gaps = np.full(len(V), self.dhat)
+        gaps = np.full(self.surface.size, self.dhat)
         for k in range(len(collisions)):
             c = collisions[k]
             ids = [int(v) for v in c.vertex_ids(self.mesh.edges, self.mesh.faces) if v >= 0]
             d = float(np.sqrt(c.compute_distance(np.ascontiguousarray(V[ids].ravel()))))  # ipctk: squared
-            gaps[ids] = np.minimum(gaps[ids], d)
+            nodes = self._pair_nodes(c)
+            gaps[nodes] = np.minimum(gaps[nodes], d)
         return self.surface.dofs, gaps[self.surface.rows]
 
     def intersecting(self, u: np.ndarray | PETSc.Vec | None = None) -> bool:
@@ -768,7 +794,7 @@ class MeshCollisionFilter:
         b = self.barrier
         comm: MPI.Comm = b.comm
         V0 = b.vertices(x.array_r)
-        step = b.surface.displacements(y.array_r)
+        step = b.surface.to_collision(b.surface.displacements(y.array_r))
         if b._tool_now is not None:
             step = np.vstack([step, np.zeros_like(b._tool_now)])
         lowest = b._min_distance(V0)

@@ -18,7 +18,7 @@ from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
 from hyperfem.validation import check_callable, check_name, check_positive
 
-__all__ = ["check_boundaries", "check_contact_settings", "check_dhat_fits"]
+__all__ = ["check_boundaries", "check_contact_settings", "check_dhat_fits", "check_subdivision"]
 
 
 def check_contact_settings(
@@ -48,6 +48,19 @@ def check_contact_settings(
     check_callable(profile, where, "profile")
     check_name(name, "name", where)
     require_ipctk(where)
+
+
+def check_subdivision(subdivision: object, where: str) -> int | None:
+    """The collision proxy's ``subdivision`` (:mod:`~hyperfem.contact.proxy`) as an int, or ``None`` (the default).
+
+    Raises:
+        ParameterError: Not ``None`` or an integer from 1 to 8 (one line).
+    """
+    if subdivision is None:
+        return None
+    if isinstance(subdivision, bool) or not isinstance(subdivision, (int, np.integer)) or not 1 <= subdivision <= 8:
+        raise ParameterError(f"{where}: subdivision must be an integer from 1 to 8, got {subdivision!r}")
+    return int(subdivision)
 
 
 def check_boundaries(boundaries: str | Sequence[str], owner: str) -> tuple[tuple[str, ...], str]:

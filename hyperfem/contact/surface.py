@@ -26,6 +26,13 @@ In 2D (plane strain, triangles or quadrilaterals) the boundary is made of
 edges: the collision mesh is segments (``ipctk``'s 2D collision mesh: no
 faces, edge–vertex pairs), a degree-1 edge one segment, a degree-2 edge two
 segments through its midpoint node. Other cells are refused in one line.
+
+Those triangles and segments on the nodes are :attr:`ContactSurface.faces`.
+The barrier acts on them for degree 1; for degree 2, by default, on the finer
+collision proxy of :mod:`~hyperfem.contact.proxy` (``subdivision``), whose
+vertices follow the facets' shape functions: on the nodes alone a uniform
+pressure is not carried (the corner nodes of a quadratic facet take none of
+it).
 """
 
 from __future__ import annotations
@@ -35,9 +42,11 @@ from dataclasses import dataclass
 
 import basix
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 from dolfinx import fem
 
+from hyperfem.contact.proxy import DEFAULT_SUBDIVISION, collision_proxy
 from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
 
@@ -60,6 +69,9 @@ class ContactSurface:
         rows: This rank's owned nodes: indices into :attr:`X`.
         dofs: Their local dofs in the unknown's array, shape ``(len(rows), d)``.
         comm: The communicator.
+        proxy_map: The collision proxy's map :math:`W` from the nodes to its vertices, shape ``(v, n)``
+            (:mod:`~hyperfem.contact.proxy`); ``None``: the collision mesh's vertices are the nodes.
+        proxy_faces: The proxy's facets, indices into its vertices (``None`` without a proxy).
     """
 
     boundaries: tuple[str, ...]
@@ -71,6 +83,8 @@ class ContactSurface:
     rows: np.ndarray
     dofs: np.ndarray
     comm: MPI.Comm
+    proxy_map: sp.csr_matrix | None = None
+    proxy_faces: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -93,6 +107,31 @@ class ContactSurface:
     def positions(self, u: np.ndarray) -> np.ndarray:
         """Current positions :math:`X + u` of every surface node, shape ``(n, d)`` (collective)."""
         return self.X + self.displacements(u)
+
+    @property
+    def collision_faces(self) -> np.ndarray:
+        """The collision mesh's facets: the proxy's, or :attr:`faces`."""
+        return self.faces if self.proxy_faces is None else self.proxy_faces
+
+    @property
+    def collision_size(self) -> int:
+        """The number of collision-mesh vertices: the proxy's, or the nodes."""
+        return self.size if self.proxy_map is None else int(self.proxy_map.shape[0])
+
+    def to_collision(self, values: np.ndarray) -> np.ndarray:
+        """Node values ``(n, d)`` (positions, displacements) at the collision mesh's vertices, ``(v, d)``."""
+        return values if self.proxy_map is None else np.asarray(self.proxy_map @ values)
+
+    def to_nodes(self, values: np.ndarray) -> np.ndarray:
+        """Forces at the collision mesh's vertices ``(v, d)`` as nodal forces ``(n, d)``: :math:`W^T f`."""
+        return values if self.proxy_map is None else np.asarray(self.proxy_map.T @ values)
+
+    def collision_nodes(self, vertices: Sequence[int]) -> list[int]:
+        """The nodes whose shape functions make up the given collision-mesh vertices (themselves without a proxy)."""
+        if self.proxy_map is None:
+            return [int(v) for v in vertices]
+        W = self.proxy_map
+        return sorted({int(c) for v in vertices for c in W.indices[W.indptr[v]:W.indptr[v + 1]]})
 
 
 def global_dofs(problem: SolidProblem) -> np.ndarray:
@@ -149,13 +188,18 @@ def _segments(vertices: list[int], middle: int | None) -> list[list[int]]:
     return [[a, b]] if middle is None else [[a, middle], [middle, b]]
 
 
-def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndarray], spaces: list) -> np.ndarray:
-    """The linear triangles (3D) or segments (2D) of this rank's owned facets of ``boundary``: local dofs of the x
-    component, ``(t, 3)`` or ``(t, 2)``.
+def _facet_triangles(
+    problem: SolidProblem, boundary: str, parents: list[np.ndarray], spaces: list
+) -> tuple[np.ndarray, np.ndarray]:
+    """The linear triangles (3D) or segments (2D) of this rank's owned facets of ``boundary``, and the facets' nodes.
 
     Tetrahedra: a P1 facet is one triangle, a P2 facet four on its six nodes. Hexahedra: a Q1 face is two
     triangles, a Q2 face eight on its nine nodes. Triangles and quadrilaterals: a degree-1 edge is one segment, a
     degree-2 edge two. Every displacement node of the facet is a vertex.
+
+    Returns:
+        ``(triangles, nodes)``: local dofs of the x component, ``(t, 3)`` or ``(t, 2)``, and each facet's nodes
+        ``(f, m)`` in the order of :func:`~hyperfem.contact.proxy.reference_lattice`.
     """
     domain = problem.domain
     mesh = domain.mesh
@@ -172,7 +216,7 @@ def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndar
     degree = V.element.basix_element.degree
     cell_type = mesh.topology.cell_name()
     topology = basix.topology(basix.CellType[cell_type])
-    out = []
+    out, lists = [], []
     for facet in facets:
         cell = int(f2c.links(facet)[0])
         local = int(np.flatnonzero(c2f.links(cell) == facet)[0])
@@ -183,14 +227,20 @@ def _facet_triangles(problem: SolidProblem, boundary: str, parents: list[np.ndar
 
         vertices = [node(0, v) for v in topology[fdim][local]]
         if tdim == 2:
-            out += _segments(vertices, node(1, local) if degree == 2 else None)
+            middle = node(1, local) if degree == 2 else None
+            out += _segments(vertices, middle)
+            lists.append(vertices + ([] if middle is None else [middle]))
             continue
         grid = _facet_node_grid(topology, cell_type, local, node) if degree == 2 else None
         out += _triangles(cell_type, vertices, grid)
-    return np.asarray(out, dtype=np.int64).reshape(-1, tdim)
+        lists.append(vertices if grid is None else [v for row in grid for v in row])
+    width = (degree + 1) ** fdim if tdim == 2 or cell_type == "hexahedron" else (3 if degree == 1 else 6)
+    return np.asarray(out, dtype=np.int64).reshape(-1, tdim), np.asarray(lists, dtype=np.int64).reshape(-1, width)
 
 
-def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str) -> ContactSurface:
+def contact_surface(
+    problem: SolidProblem, boundaries: Sequence[str], where: str, subdivision: int | None = None
+) -> ContactSurface:
     """The collision surface of ``boundaries`` on every rank (collective; module docstring).
 
     Args:
@@ -198,6 +248,9 @@ def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str
             triangles or quadrilaterals).
         boundaries: Boundary group names.
         where: The contact, for messages.
+        subdivision: 1: the collision mesh is the facets' linear triangles on the nodes; :math:`s > 1`: the finer
+            proxy of :mod:`~hyperfem.contact.proxy` (a facet edge cut into ``degree * s`` segments); ``None``:
+            :data:`~hyperfem.contact.proxy.DEFAULT_SUBDIVISION` for degree 2, 1 for degree 1.
 
     Raises:
         UnknownGroupError: A group does not exist (the message lists those that do).
@@ -234,10 +287,11 @@ def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str
     for bc in problem.bcs:
         constrained[bc.dof_indices()[0]] = True
 
-    triangles, nodes = [], {}
+    triangles, lists, nodes = [], [], {}
     for k, name in enumerate(boundaries):
-        tri = _facet_triangles(problem, name, parents, spaces)
+        tri, facet_nodes = _facet_triangles(problem, name, parents, spaces)
         triangles.append(gdofs[tri])
+        lists.append(gdofs[facet_nodes])
         # The owned nodes of the group's facets (every facet's nodes, on the rank that owns each).
         fdim = domain.tdim - 1
         x_dofs = fem.locate_dofs_topological((V.sub(0), spaces[0]), fdim, domain.facets(name))[0]
@@ -268,4 +322,13 @@ def contact_surface(problem: SolidProblem, boundaries: Sequence[str], where: str
     rank_keys = np.array([item[0] for item in mine], dtype=np.int64)
     rows = np.searchsorted(keys, rank_keys).astype(np.int64)
     dofs = np.array([item[2] for item in mine], dtype=np.int64).reshape(-1, gdim)
-    return ContactSurface(tuple(boundaries), X, faces, group, gd, fixed, rows, dofs, comm)
+    proxy_map, proxy_faces = None, None
+    if subdivision is None:
+        subdivision = DEFAULT_SUBDIVISION if degree == 2 else 1
+    if subdivision > 1:
+        facet_nodes = np.concatenate(comm.allgather(np.concatenate(lists)))
+        facet_nodes = np.searchsorted(keys, facet_nodes)
+        _, first = np.unique(np.sort(facet_nodes, axis=1), axis=0, return_index=True)  # a facet in two groups: once
+        shape = "interval" if gdim == 2 else ("triangle" if cell == "tetrahedron" else "quadrilateral")
+        proxy_map, proxy_faces = collision_proxy(facet_nodes[np.sort(first)], shape, degree, subdivision, X)
+    return ContactSurface(tuple(boundaries), X, faces, group, gd, fixed, rows, dofs, comm, proxy_map, proxy_faces)

@@ -41,7 +41,7 @@ from hyperfem.contact.bodies import surface_defaults
 from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.mesh_barrier import MeshBarrier, RigidSurface
 from hyperfem.contact.obstacles import check_rotation
-from hyperfem.contact.settings import check_boundaries, check_contact_settings
+from hyperfem.contact.settings import check_boundaries, check_contact_settings, check_subdivision
 from hyperfem.contact.surface import contact_surface
 from hyperfem.errors import MeshError, ParameterError
 from hyperfem.loading.motion import RigidRotation
@@ -120,6 +120,7 @@ class ToolContact:
         rotation: A :class:`~hyperfem.loading.RigidRotation` of the tool about a pivot of its placed points
             (after ``offset`` and ``scale``), composed with the translation: :math:`x(t) = R(\theta(t))(X - c_r)
             + c_r + s(t)` (``None``: it does not turn; :mod:`~hyperfem.contact.obstacles`).
+        subdivision: The body's collision proxy (as for :class:`~hyperfem.contact.SurfaceContact`; 1: none).
 
     Raises:
         ParameterError: A bad entry (one line), or ``ipctk`` not installed.
@@ -141,10 +142,12 @@ class ToolContact:
     points: np.ndarray | None = None
     triangles: np.ndarray | None = None
     rotation: RigidRotation | None = None
+    subdivision: int | None = None
 
     def __post_init__(self) -> None:
         names, where = check_boundaries(self.boundaries, "ToolContact")
         object.__setattr__(self, "boundaries", tuple(names))
+        check_subdivision(self.subdivision, where)
         if (self.file is None) == (self.points is None):
             raise ParameterError(f"{where}: give either file or points and triangles")
         read = None if self.file is None else read_tool_surface(self.file, where)
@@ -216,7 +219,7 @@ class ToolContact:
             ParameterError: Not a degree-1/2 problem on tetrahedra or hexahedra (3D) or triangles or quadrilaterals
                 (2D), a tool of another dimension than the mesh, or the tool starts touching or inside the body.
         """
-        surface = contact_surface(problem, self.boundaries, self.where)
+        surface = contact_surface(problem, self.boundaries, self.where, self.subdivision)
         tool = self.surface
         if tool.dim != surface.dim:
             wanted = (
@@ -224,7 +227,7 @@ class ToolContact:
                 "at z = 0" if surface.dim == 2 else "triangles in 3D (ToolContact.from_arrays or a file)"
             )
             raise ParameterError(f"{self.where}: a {tool.dim}D tool on a {surface.dim}D mesh; give {wanted}")
-        dhat, stiffness = surface_defaults(problem, self.boundaries, surface.dofs, self.dhat, self.stiffness)
+        dhat, stiffness = surface_defaults(problem, self.boundaries, surface, self.dhat, self.stiffness)
         return MeshBarrier(
             self, problem, surface, where=self.where, dhat=dhat, stiffness=stiffness, safety=self.safety,
             friction=self.friction, friction_epsilon=self.friction_epsilon,
