@@ -500,7 +500,7 @@ def _surface_keys(default_name: str) -> dict[str, Key]:
                            help="the collision proxy: the barrier acts on a lattice of points that follow each "
                            "facet's shape functions, a facet edge cut into degree x subdivision segments (1: on the "
                            "nodes); default 2 for degree-2 displacements (whose corner nodes carry no load under a "
-                           "uniform pressure), 1 for degree 1 (hyperfem.contact.proxy)"),
+                           "uniform pressure) and hexahedra, else 1 (hyperfem.contact.proxy)"),
     }
 
 

@@ -87,8 +87,8 @@ class SurfaceContact:
         subdivision: 1: the barrier acts on the facets' nodes; :math:`s > 1`: on a finer collision proxy whose
             vertices follow the facets' shape functions (a facet edge in ``degree * s`` segments;
             :mod:`~hyperfem.contact.proxy`), for P2/Q2 surfaces, whose corner nodes carry no load under a
-            uniform pressure. ``None``: :data:`~hyperfem.contact.proxy.DEFAULT_SUBDIVISION` for degree 2, 1 for
-            degree 1.
+            uniform pressure, and Q1 faces. ``None``: :func:`~hyperfem.contact.proxy.default_subdivision` (2 for
+            degree 2 and hexahedra, else 1).
 
     Raises:
         ParameterError: A bad entry (one line), no boundary, a boundary named twice,

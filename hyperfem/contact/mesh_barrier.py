@@ -60,7 +60,7 @@ energy, gradient and (projected) Hessian. Checked: a block on a rough plate
 pushed by half :math:`\mu N` holds it to 1e-8, dragged it slides at
 :math:`\mu N` to 0.03 %.
 
-**Collision proxy.** Where the surface has one (degree 2 by default,
+**Collision proxy.** Where the surface has one (degree 2 and hexahedra by default,
 :mod:`~hyperfem.contact.proxy`), the collision mesh's vertices are
 :math:`y = W x` of the surface nodes: the pairs, the barrier, the friction and
 the collision filters act on :math:`y`, and the gradient and Hessian come back

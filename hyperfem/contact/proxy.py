@@ -23,17 +23,28 @@ as :math:`s` grows. The proxy's triangles are what is kept
 intersection-free; between its vertices the curved P2 surface can differ from
 them by :math:`O(h^2/s^2)`.
 
+A Q1 face has the same trouble in another form: its two triangles on the
+four corners are not the bilinear face (they fold along a diagonal), and a
+uniform pressure on them is not carried by the face's consistent loads
+either.
+
 Measured on the stacked-block patch test (``tests/test_contact_surfaces.py``,
 the top reaction against :math:`|P_{zz}|`), on the nodes / :math:`s = 2`
-(the default, :data:`DEFAULT_SUBDIVISION`) / :math:`s = 4`:
+(the default there, :func:`default_subdivision`) / :math:`s = 4`:
 
 * P2 tetrahedra, h = (1, 0.6), 10 % compression: 3.3 % / 0.42 % / 0.14 %
-  (P1 on the nodes: 0.031 %); h = (0.5, 0.34): 1.08 % / 0.17 % / 0.048 %;
+  (P1 on the nodes: 0.031 %; with :math:`s = 2`: 0.019 %, not worth its
+  cost, so P1 stays on the nodes); h = (0.5, 0.34): 1.08 % / 0.17 % / 0.048 %;
 * Q2 hexahedra, h = (0.5, 1), 20 %: 5.9 % / 0.39 %;
-* 2D, P2 triangles / Q2 quadrilaterals: 2.2 % / 0.15 %, 3.0 % / 0.14 %.
+* Q1 hexahedra, h = (1, 0.6), 10 %: 1.7 % / 0.015 % (the warp 11 / 1.3
+  d-hat); h = (1/3, 1/2), 20 %: 0.006 % / 0.007 % (the warp 2.4 / 0.5 d-hat);
+* 2D, P2 triangles / Q2 quadrilaterals: 2.2 % / 0.15 %, 3.0 % / 0.14 %
+  (degree 1 on the nodes: 0.004 %, 0.002 %: a linear edge is its segment).
 
 The interface's warp (the spread of the contact nodes' heights, 5 d-hat on
-the nodes) falls to below one d-hat. The proxy has about :math:`s^2` times
+the nodes for P2) falls to below one d-hat. IPC's area weighting
+(``NormalCollisions.use_area_weighting``, with the stiffness rescaled)
+changed none of these warps (tried). The proxy has about :math:`s^2` times
 the vertices of the nodes (a P2 triangle: 8 vertices and 16 triangles at
 :math:`s = 2`, against 2 and 4), and ``ipctk``'s costs grow with it; the
 solve times of these tests did not change (0.9 s at h = (1, 0.6) either
@@ -52,10 +63,20 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["DEFAULT_SUBDIVISION", "collision_proxy", "reference_lattice"]
+__all__ = ["DEFAULT_SUBDIVISION", "collision_proxy", "default_subdivision", "reference_lattice"]
 
 DEFAULT_SUBDIVISION = 2
-"""The proxy of a degree-2 surface by default: a facet edge in 4 segments (module docstring; degree 1: none)."""
+"""The proxy of a surface whose facets are not linear triangles or segments, by default (module docstring)."""
+
+
+def default_subdivision(facet: str, degree: int) -> int:
+    """:data:`DEFAULT_SUBDIVISION` for degree-2 facets and quadrilateral faces (Q1 too), else 1 (on the nodes).
+
+    Args:
+        facet: ``"triangle"``, ``"quadrilateral"`` or ``"interval"`` (:func:`reference_lattice`).
+        degree: The displacement's degree.
+    """
+    return DEFAULT_SUBDIVISION if degree == 2 or facet == "quadrilateral" else 1
 
 _EXACT = 2**30  # weights are compared on this grid (the lattice's are dyadic or rational with small denominators)
 

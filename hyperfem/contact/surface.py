@@ -28,11 +28,12 @@ faces, edge–vertex pairs), a degree-1 edge one segment, a degree-2 edge two
 segments through its midpoint node. Other cells are refused in one line.
 
 Those triangles and segments on the nodes are :attr:`ContactSurface.faces`.
-The barrier acts on them for degree 1; for degree 2, by default, on the finer
-collision proxy of :mod:`~hyperfem.contact.proxy` (``subdivision``), whose
-vertices follow the facets' shape functions: on the nodes alone a uniform
-pressure is not carried (the corner nodes of a quadratic facet take none of
-it).
+The barrier acts on them for P1 tetrahedra and degree-1 edges; for degree 2
+and hexahedra, by default, on the finer collision proxy of
+:mod:`~hyperfem.contact.proxy` (``subdivision``), whose vertices follow the
+facets' shape functions: on the nodes alone a uniform pressure is not carried
+(the corner nodes of a quadratic facet take none of it; a Q1 face's two
+triangles are not the bilinear face).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from dolfinx import fem
 
-from hyperfem.contact.proxy import DEFAULT_SUBDIVISION, collision_proxy
+from hyperfem.contact.proxy import collision_proxy, default_subdivision
 from hyperfem.errors import ParameterError
 from hyperfem.problem.protocol import SolidProblem
 
@@ -250,7 +251,7 @@ def contact_surface(
         where: The contact, for messages.
         subdivision: 1: the collision mesh is the facets' linear triangles on the nodes; :math:`s > 1`: the finer
             proxy of :mod:`~hyperfem.contact.proxy` (a facet edge cut into ``degree * s`` segments); ``None``:
-            :data:`~hyperfem.contact.proxy.DEFAULT_SUBDIVISION` for degree 2, 1 for degree 1.
+            :func:`~hyperfem.contact.proxy.default_subdivision` (2 for degree 2 and hexahedra, else 1).
 
     Raises:
         UnknownGroupError: A group does not exist (the message lists those that do).
@@ -323,12 +324,12 @@ def contact_surface(
     rows = np.searchsorted(keys, rank_keys).astype(np.int64)
     dofs = np.array([item[2] for item in mine], dtype=np.int64).reshape(-1, gdim)
     proxy_map, proxy_faces = None, None
+    shape = "interval" if gdim == 2 else ("triangle" if cell == "tetrahedron" else "quadrilateral")
     if subdivision is None:
-        subdivision = DEFAULT_SUBDIVISION if degree == 2 else 1
+        subdivision = default_subdivision(shape, degree)
     if subdivision > 1:
         facet_nodes = np.concatenate(comm.allgather(np.concatenate(lists)))
         facet_nodes = np.searchsorted(keys, facet_nodes)
         _, first = np.unique(np.sort(facet_nodes, axis=1), axis=0, return_index=True)  # a facet in two groups: once
-        shape = "interval" if gdim == 2 else ("triangle" if cell == "tetrahedron" else "quadrilateral")
         proxy_map, proxy_faces = collision_proxy(facet_nodes[np.sort(first)], shape, degree, subdivision, X)
     return ContactSurface(tuple(boundaries), X, faces, group, gd, fixed, rows, dofs, comm, proxy_map, proxy_faces)
