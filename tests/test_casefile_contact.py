@@ -495,7 +495,7 @@ def test_surface_contact_keys_reach_the_script(shared_tmp):
         ('safety = 1.0', "contact[0].safety: must be < 1, got 1.0"),
         ('name = "a b"', "contact[0].name: use letters, digits and _.+- only"),
         ('subdivision = 0', "contact[0].subdivision: must be >= 1, got 0"),
-        ('subdivision = 9', "contact[0].subdivision: must be < 9, got 9"),
+        ('subdivision = 9', "contact[0].subdivision: must be <= 8, got 9"),
     ],
 )
 def test_bad_pair_entries_are_one_line(shared_tmp, change, expected):

@@ -483,7 +483,8 @@ def _surface_keys(default_name: str) -> dict[str, Key]:
                     "smallest mean facet size of the boundaries"),
         "stiffness": Key("number", above=0.0, example=1.0e6,
                          help="ipctk's barrier stiffness kappa, on squared distances; default from the mean "
-                         "diagonal of the elastic tangent at the surface nodes"),
+                         "diagonal of the elastic tangent at the surface nodes (over the collision proxy's vertices "
+                         "per node)"),
         "safety": Key("number", above=0.0, below=1.0, default=0.9,
                       help="the collision filter's safety factor s in (0, 1): a Newton step goes at most s of the "
                       "way to the first touch"),
@@ -496,11 +497,11 @@ def _surface_keys(default_name: str) -> dict[str, Key]:
         "friction_epsilon": Key("number", above=0.0, example=1.0e-4,
                                 help="friction's slip length in m below which a pair sticks elastically; "
                                 "default 0.1 dhat"),
-        "subdivision": Key("integer", minimum=1, below=9, example=2,
+        "subdivision": Key("integer", minimum=1, maximum=8, example=2,
                            help="the collision proxy: the barrier acts on a lattice of points that follow each "
                            "facet's shape functions, a facet edge cut into degree x subdivision segments (1: on the "
-                           "nodes); default 2 for degree-2 displacements (whose corner nodes carry no load under a "
-                           "uniform pressure) and hexahedra, else 1 (hyperfem.contact.proxy)"),
+                           "nodes); default 2 for degree-2 displacements (a uniform pressure's consistent nodal "
+                           "loads differ between their nodes) and hexahedra, else 1 (hyperfem.contact.proxy)"),
     }
 
 
@@ -1458,6 +1459,8 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
     twice = [name for i, name in enumerate(names) if name in names[:i]]
     if twice:
         raise CaseFileError(f"{where}.boundaries: {twice[0]!r} is named twice")
+    if values.get("subdivision", 1) > 8:
+        raise CaseFileError(f"{where}.subdivision: must be <= 8, got {values['subdivision']!r}")
     path = None
     if kind == "tool":
         path = Path(values["file"]).expanduser()

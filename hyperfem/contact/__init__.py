@@ -15,8 +15,8 @@ gives an :class:`~hyperfem.solver.external.ExternalEnergy` passed to
   :mod:`~hyperfem.contact.plane`, :mod:`~hyperfem.contact.sphere`,
   :mod:`~hyperfem.contact.ccd`, :mod:`~hyperfem.contact.obstacles`).
 * Between surface triangles, from ``ipctk`` (:mod:`~hyperfem.contact.mesh_barrier`,
-  the surface gathered by :mod:`~hyperfem.contact.surface`, degree-2 facets through the
-  collision proxy of :mod:`~hyperfem.contact.proxy`):
+  the surface gathered by :mod:`~hyperfem.contact.surface`, degree-2 facets and hexahedral
+  faces through the collision proxy of :mod:`~hyperfem.contact.proxy`):
   :class:`SurfaceContact` (self-contact, two bodies of one mesh;
   :mod:`~hyperfem.contact.bodies`) and :class:`ToolContact` (a rigid
   triangulated tool from an STL/OBJ/gmsh file or arrays, moving on a path and turning;

@@ -86,9 +86,9 @@ class SurfaceContact:
         name: Prefix of the output columns (``contact_force``, ...).
         subdivision: 1: the barrier acts on the facets' nodes; :math:`s > 1`: on a finer collision proxy whose
             vertices follow the facets' shape functions (a facet edge in ``degree * s`` segments;
-            :mod:`~hyperfem.contact.proxy`), for P2/Q2 surfaces, whose corner nodes carry no load under a
-            uniform pressure, and Q1 faces. ``None``: :func:`~hyperfem.contact.proxy.default_subdivision` (2 for
-            degree 2 and hexahedra, else 1).
+            :mod:`~hyperfem.contact.proxy`), for P2/Q2 surfaces (a uniform pressure's consistent nodal loads
+            differ between their nodes: none at a P2 triangle's corners) and Q1 faces. ``None``:
+            :func:`~hyperfem.contact.proxy.default_subdivision` (2 for degree 2 and hexahedra, else 1).
 
     Raises:
         ParameterError: A bad entry (one line), no boundary, a boundary named twice,

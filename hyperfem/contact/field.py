@@ -16,7 +16,8 @@ vector fields of the displacement's space and a scalar one of its scalar space:
   positive outside, so about :math:`\hat d` or less where the body touches
   and the distance to the obstacle away from it); for mesh contact (self,
   pair, tool) the smallest distance of the primitive pairs closer than
-  :math:`\hat d` a surface node belongs to, and :math:`\hat d` where it
+  :math:`\hat d` a surface node belongs to (through a collision proxy: the pairs
+  of the proxy vertices its shape function takes part in), and :math:`\hat d` where it
   belongs to none, as at every other node (out of reach: a gap belongs to a
   pair of primitives, so away from contact it is capped there). A tie measures no gap: 0 where only
   ties act.

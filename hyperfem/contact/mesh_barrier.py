@@ -78,7 +78,9 @@ as for the plane.
 :math:`d \ll \hat d` carries the force :math:`2\kappa\hat d^4/d`, the nodal
 barrier :math:`\kappa_n\hat d^2/d`: the default :math:`\kappa = \bar k/(2\hat d^2)`
 (:math:`\bar k` the mean tangent diagonal at the surface nodes,
-:mod:`~hyperfem.contact.defaults`) gives the force law of the nodal default.
+:mod:`~hyperfem.contact.defaults`) gives the force law of the nodal default;
+with a collision proxy it is divided by the proxy's vertices per node, which
+keeps the pressure at a given gap.
 
 MPI: the surface is gathered to every rank and the barrier evaluated
 redundantly (:mod:`~hyperfem.contact.surface` says how that scales and what
@@ -387,7 +389,7 @@ class MeshBarrier:
         """A gradient over the collision mesh's dofs as one over the nodes' (and the tool's), flat."""
         return g if self._expand is None else np.asarray(self._expand.T @ g)
 
-    def _pair_nodes(self, pair: Any) -> list[int]:
+    def _pair_nodes(self, pair: Any) -> np.ndarray:
         """The surface nodes of a pair's collision vertices (the tool's left out)."""
         body = self.surface.collision_size
         ids = [int(v) for v in pair.vertex_ids(self.mesh.edges, self.mesh.faces) if 0 <= v < body]
@@ -551,10 +553,12 @@ class MeshBarrier:
         exactly.
         """
         empty = (self.surface.dofs[:0], np.zeros((0, self.dim)))
-        if self.tool is None or not len(self.surface.rows):
+        if self.tool is None:
             return empty
         t_from = obstacle_time(self.problem, t_from)  # where the tool was at the anchor
-        body = self.surface.positions(u)  # collective: every rank calls carried()
+        body = self.surface.positions(u)  # collective: every rank calls carried(), also one without surface nodes
+        if not len(self.surface.rows):
+            return empty
         tool = self.tool.vertices(t_from)
         shift = self.tool.increments(body, t_from, self.time)  # each node moved with the tool
         tool_shift = self.tool.increments(tool, t_from, self.time)
@@ -567,16 +571,23 @@ class MeshBarrier:
         def unit(v: np.ndarray, n: np.ndarray) -> np.ndarray:
             return np.divide(v, n[:, None], out=np.zeros_like(v), where=n[:, None] > 0.0)
 
-        overrun = np.zeros(self.surface.size, dtype=bool)
-        rows = self.surface.rows
-        hit = ray_hits(body[rows], -unit(shift[rows], length[rows]), tool[self.tool.faces])[0]
-        overrun[rows] = (hit < length[rows] / safety) & (length[rows] > 0.0)
-        # A tool vertex that would cross a body triangle between its nodes: the triangle's nodes move with the tool.
-        distance, face = ray_hits(tool, unit(tool_shift, tool_length), body[self.surface.faces])
+        # On the collision mesh (the proxy's vertices and triangles, if any; a rigid increment is affine, so the
+        # vertices move as their nodes' rigid increments interpolated): a vertex whose ray hits the tool, and the
+        # vertices of a collision triangle a tool vertex would cross, carry their nodes with the tool.
+        surface = self.surface
+        y = surface.to_collision(body)
+        mine_y = surface.owned_vertices()
+        shift_y = self.tool.increments(y[mine_y], t_from, self.time)
+        length_y = np.linalg.norm(shift_y, axis=1)
+        hit = ray_hits(y[mine_y], -unit(shift_y, length_y), tool[self.tool.faces])[0]
+        hit_vertices = mine_y[(hit < length_y / safety) & (length_y > 0.0)]
+        faces = surface.collision_faces
+        distance, face = ray_hits(tool, unit(tool_shift, tool_length), y[faces])
         crossing = (distance < tool_length / safety) & (tool_length > 0.0)
-        overrun[self.surface.faces[face[crossing]].ravel()] = True
-        mine = np.flatnonzero(overrun[self.surface.rows])
-        return self.surface.dofs[mine], shift[self.surface.rows[mine]]
+        overrun = np.zeros(surface.size, dtype=bool)
+        overrun[surface.collision_nodes(np.concatenate([hit_vertices, faces[face[crossing]].ravel()]))] = True
+        mine = np.flatnonzero(overrun[surface.rows])
+        return surface.dofs[mine], shift[surface.rows[mine]]
 
     def carried_by_supports(self, u: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r"""This rank's free surface nodes pushed by prescribed ones: ``(dofs, increments)``.
@@ -649,7 +660,7 @@ class MeshBarrier:
         if not distance > 0.0:
             k = self._closest_vertex(V, collisions)
             raise ParameterError(
-                f"{self.where}: the surfaces start in contact: the node at "
+                f"{self.where}: the surfaces start in contact: the surface point at "
                 f"{tuple(float(f'{v:.6g}') for v in V[k])} is at distance {distance:.3g} from another primitive"
             )
         if self.ipctk.has_intersections(self.mesh, _f(V), self.ipctk.HashGrid()):
@@ -735,7 +746,8 @@ class MeshBarrier:
         r"""Per owned surface node, the smallest distance of the pairs closer than :math:`\hat d` it belongs to.
 
         :math:`\hat d` where it is in none (out of the barrier's reach: a gap belongs to a pair of primitives, the
-        node's is the closest of its pairs). Returns ``(dofs, gaps)``, shapes ``(m, d)`` and ``(m,)``.
+        node's is the closest of its pairs). Through a collision proxy a node belongs to the pairs of every proxy
+        vertex its shape function takes part in. Returns ``(dofs, gaps)``, shapes ``(m, d)`` and ``(m,)``.
         """
         V = self.vertices(self._state(u))
         collisions = self._collisions(V)

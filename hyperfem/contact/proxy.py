@@ -1,9 +1,10 @@
 r"""The collision proxy: finer linear triangles on a surface facet, their vertices interpolated from the facet's nodes.
 
 The barrier of :mod:`~hyperfem.contact.mesh_barrier` acts on the vertices of
-a linear collision mesh. By default its vertices are the displacement nodes
-themselves (:mod:`~hyperfem.contact.surface`): a P2 facet is four linear
-triangles on its six nodes. Every vertex in contact then carries about the
+a linear collision mesh. On the nodes alone (``subdivision = 1``, the default
+of P1 tetrahedra and of degree-1 edges in 2D) its vertices are the
+displacement nodes themselves (:mod:`~hyperfem.contact.surface`): a P2 facet
+is four linear triangles on its six nodes. Every vertex in contact then carries about the
 same force, where the consistent nodal loads of a uniform pressure on a P2
 triangle are 0 at the corners and a third of the load at each midside node
 (the reason Abaqus has its modified C3D10M tetrahedron for contact): the
@@ -54,8 +55,8 @@ gives the same gap with or without the proxy.
 
 Lattice points on a facet edge or corner are shared with the neighbouring
 facets (found by their rows of :math:`W`), so the proxy is a closed
-surface wherever the facets are. Its vertices are ordered by those rows:
-the same on any number of ranks.
+surface wherever the facets are. Its vertices are ordered by their rest
+positions: the same on any number of ranks.
 """
 
 from __future__ import annotations
@@ -141,6 +142,20 @@ def reference_lattice(facet: str, degree: int, resolution: int) -> tuple[np.ndar
     return S, np.asarray(triangles, dtype=np.int64)
 
 
+def _on_facet_boundary(facet: str, resolution: int) -> np.ndarray:
+    """Which points of :func:`reference_lattice`'s lattice lie on the facet's edges or corners (on an interval: its
+    ends)."""
+    n = int(resolution)
+    if facet == "interval":
+        i = np.arange(n + 1)
+        return (i == 0) | (i == n)
+    if facet == "quadrilateral":
+        j, i = np.divmod(np.arange((n + 1) ** 2), n + 1)
+        return (i == 0) | (i == n) | (j == 0) | (j == n)
+    points = np.array([(i, j) for j in range(n + 1) for i in range(n + 1 - j)])
+    return (points[:, 0] == 0) | (points[:, 1] == 0) | (points.sum(axis=1) == n)
+
+
 def collision_proxy(
     facets: np.ndarray, facet: str, degree: int, subdivision: int, X: np.ndarray
 ) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -162,22 +177,41 @@ def collision_proxy(
         ``(W, faces)``: ``W`` of shape ``(v, nodes)`` (rows: proxy vertices, partitions of unity), ``faces``
         the sub-facets as proxy vertex indices, ``(t, 3)`` or ``(t, 2)``.
     """
-    S, sub = reference_lattice(facet, degree, degree * int(subdivision))
+    n = degree * int(subdivision)
+    S, sub = reference_lattice(facet, degree, n)
     f, m = facets.shape
     p = S.shape[0]
-    index = np.broadcast_to(facets[:, None, :], (f, p, m)).reshape(-1, m)
-    weight = np.broadcast_to(S[None], (f, p, m)).reshape(-1, m)
+    # Points on a facet's edges and corners are shared with its neighbours: found by their rows of W (the sorted
+    # nonzero (node, weight) pairs, at most 3: an edge's nodes). Interior points belong to their facet alone.
+    edge = _on_facet_boundary(facet, n)
+    shared, inner = np.flatnonzero(edge), np.flatnonzero(~edge)
+    index = np.broadcast_to(facets[:, None, :], (f, len(shared), m)).reshape(-1, m)
+    weight = np.broadcast_to(S[shared][None], (f, len(shared), m)).reshape(-1, m)
     zero = np.abs(weight) < 1e-12
     index = np.where(zero, -1, index)
     weight = np.where(zero, 0.0, weight)
     order = np.argsort(index, axis=1, kind="stable")
-    index = np.take_along_axis(index, order, axis=1)
-    weight = np.take_along_axis(weight, order, axis=1)
+    width = min(m, 3)  # the nonzero pairs sort last
+    index = np.take_along_axis(index, order, axis=1)[:, m - width :]
+    weight = np.take_along_axis(weight, order, axis=1)[:, m - width :]
     key = np.concatenate([index, np.round(weight * _EXACT).astype(np.int64)], axis=1)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     rows, cols = np.nonzero(index[first] >= 0)
-    W = sp.csr_matrix((weight[first][rows, cols], (rows, index[first][rows, cols])), shape=(len(first), len(X)))
-    faces = inverse.reshape(f, p)[:, sub].reshape(-1, sub.shape[1])
+    inner_weight = np.broadcast_to(S[inner][None], (f, len(inner), m)).reshape(-1, m)
+    inner_rows, inner_cols = np.nonzero(np.abs(inner_weight) >= 1e-12)
+    inner_index = np.broadcast_to(facets[:, None, :], (f, len(inner), m)).reshape(-1, m)
+    W = sp.csr_matrix(
+        (
+            np.concatenate([weight[first][rows, cols], inner_weight[inner_rows, inner_cols]]),
+            (np.concatenate([rows, len(first) + inner_rows]),
+             np.concatenate([index[first][rows, cols], inner_index[inner_rows, inner_cols]])),
+        ),
+        shape=(len(first) + f * len(inner), len(X)),
+    )
+    vertex = np.empty((f, p), dtype=np.int64)
+    vertex[:, shared] = inverse.reshape(f, len(shared))
+    vertex[:, inner] = len(first) + np.arange(f * len(inner)).reshape(f, len(inner))
+    faces = vertex[:, sub].reshape(-1, sub.shape[1])
     # Rank-independent order: vertices by rest position (rounded far below any mesh size), sub-facets rotated to
     # start at their smallest vertex (keeping their orientation), then sorted.
     Y = np.asarray(W @ X)

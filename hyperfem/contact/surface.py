@@ -17,8 +17,8 @@ displacement of a step and :math:`\hat d`, rebuilt when a node leaves it.
 
 The surface of a P1 displacement is its boundary triangles; a P2 boundary
 triangle is split into four linear sub-triangles on its six nodes (vertices
-and edge midpoints), so every node is a vertex of the collision mesh and the
-barrier acts on every displacement node of the boundary. On hexahedra a Q1
+and edge midpoints), so every displacement node of the boundary is a vertex
+of these triangles (:attr:`ContactSurface.faces`). On hexahedra a Q1
 face is split into two triangles and a Q2 face into eight on its nine nodes
 (corners, edge midpoints, centre).
 
@@ -32,8 +32,9 @@ The barrier acts on them for P1 tetrahedra and degree-1 edges; for degree 2
 and hexahedra, by default, on the finer collision proxy of
 :mod:`~hyperfem.contact.proxy` (``subdivision``), whose vertices follow the
 facets' shape functions: on the nodes alone a uniform pressure is not carried
-(the corner nodes of a quadratic facet take none of it; a Q1 face's two
-triangles are not the bilinear face).
+(a uniform pressure's consistent loads differ between a quadratic facet's
+nodes, none at a P2 triangle's corners; a Q1 face's two triangles are not
+the bilinear face).
 """
 
 from __future__ import annotations
@@ -62,8 +63,8 @@ class ContactSurface:
         boundaries: The boundary groups it is made of.
         X: Reference positions of the surface nodes, shape ``(n, d)`` (``d`` the mesh's dimension, 2 or 3), the
             same on every rank.
-        faces: The collision mesh's facets, indices into :attr:`X`: triangles ``(f, 3)`` in 3D, segments
-            ``(f, 2)`` in 2D.
+        faces: The linear triangles ``(f, 3)`` (in 2D segments ``(f, 2)``) on the nodes, indices into :attr:`X`:
+            the collision mesh's facets where there is no proxy (:attr:`collision_faces`).
         group: Index into :attr:`boundaries` of each node's (first) group, shape ``(n,)``.
         global_dofs: The global (PETSc) dofs of each node's components, shape ``(n, d)``.
         constrained: Whether each component is a Dirichlet dof, shape ``(n, d)``.
@@ -127,12 +128,18 @@ class ContactSurface:
         """Forces at the collision mesh's vertices ``(v, d)`` as nodal forces ``(n, d)``: :math:`W^T f`."""
         return values if self.proxy_map is None else np.asarray(self.proxy_map.T @ values)
 
-    def collision_nodes(self, vertices: Sequence[int]) -> list[int]:
+    def collision_nodes(self, vertices: Sequence[int] | np.ndarray) -> np.ndarray:
         """The nodes whose shape functions make up the given collision-mesh vertices (themselves without a proxy)."""
+        index = np.asarray(vertices, dtype=np.int64).reshape(-1)
         if self.proxy_map is None:
-            return [int(v) for v in vertices]
-        W = self.proxy_map
-        return sorted({int(c) for v in vertices for c in W.indices[W.indptr[v]:W.indptr[v + 1]]})
+            return np.unique(index)
+        return np.unique(self.proxy_map[index].indices).astype(np.int64)
+
+    def owned_vertices(self) -> np.ndarray:
+        """The collision-mesh vertices made up of (at least one of) this rank's owned nodes."""
+        if self.proxy_map is None:
+            return np.asarray(self.rows, dtype=np.int64)
+        return np.unique(self.proxy_map[:, self.rows].nonzero()[0]).astype(np.int64)
 
 
 def global_dofs(problem: SolidProblem) -> np.ndarray:

@@ -258,7 +258,7 @@ class TieBarrier:
         self.problem = problem
         self.comm = problem.domain.comm
         self.where = contact.where
-        surface = contact_surface(problem, [contact.slave, contact.master], contact.where)
+        surface = contact_surface(problem, [contact.slave, contact.master], contact.where, subdivision=1)
         self.surface: ContactSurface = surface
         X = surface.X
         sizes = np.linalg.norm(X[surface.faces][:, 1] - X[surface.faces][:, 0], axis=1)
