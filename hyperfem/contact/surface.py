@@ -124,10 +124,6 @@ class ContactSurface:
         """Node values ``(n, d)`` (positions, displacements) at the collision mesh's vertices, ``(v, d)``."""
         return values if self.proxy_map is None else np.asarray(self.proxy_map @ values)
 
-    def to_nodes(self, values: np.ndarray) -> np.ndarray:
-        """Forces at the collision mesh's vertices ``(v, d)`` as nodal forces ``(n, d)``: :math:`W^T f`."""
-        return values if self.proxy_map is None else np.asarray(self.proxy_map.T @ values)
-
     def collision_nodes(self, vertices: Sequence[int] | np.ndarray) -> np.ndarray:
         """The nodes whose shape functions make up the given collision-mesh vertices (themselves without a proxy)."""
         index = np.asarray(vertices, dtype=np.int64).reshape(-1)
