@@ -10,7 +10,7 @@ penetration. The slab: 1 x 1 x 0.25 m, clamped at the bottom, Neo-Hookean
 middle of the top, moved by (0.3, 0, -0.1) m over 2 s (indenting 40 % of the
 slab while dragging), optional Coulomb friction. Per mesh size and
 configuration one JSON object: tetrahedra, unknowns, steps/s sustained over
-the timed steps (after ``--warmup``), the fraction of steps within the frame,
+the timed steps (after ``--warmup``), the fraction of steps within the frame, the inversion guard's cutbacks,
 the per-step breakdown (assembly with the barrier's terms, solve, other: the
 collision filters and the rest; ms), Newton iterations, steps above ``rtol``,
 collision-filter cutbacks, the smallest contact distance over all steps (> 0:
@@ -103,6 +103,7 @@ def run(
     if contact:
         entry["min_distance"] = min(r.min_distance for r in records)
         entry["contact_cutbacks"] = sum(r.contact_cutbacks for r in records)
+        entry["inversion_cutbacks"] = sum(r.inversion_cutbacks for r in records)
         entry["contact_force"] = [float(v) for v in contacts[0].force()]  # type: ignore[attr-defined]
         entry["active_nodes"] = contacts[0].active_count()  # type: ignore[attr-defined]
     return entry
