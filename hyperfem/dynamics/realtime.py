@@ -119,11 +119,15 @@ a non-finite residual (a cell inverted: :math:`\log J` of the energy) on P1
 simplices, the update is taken again from its start as far as the exact
 inversion filter allows (:class:`~hyperfem.solver.filters.ExactInversionFilter`,
 ``inversion_cutbacks``), and a start (warm start or contact start) that
-inverts a cell is pulled back toward the accepted state the same way. Without
-this the tool on tissue above raised at t = 1 s on 1,200 and 8,664
-tetrahedra with d-hat 2–3 mm (residual NaN); with it every step finishes with
-:math:`J > 0` (``tests/test_realtime.py``). An energy finite for :math:`J \le 0`
-would not be caught; a state still non-finite raises as before.
+inverts a cell is pulled back toward the accepted state (with the new
+boundary values and the carried nodes) the same way, as far as the collision
+filters also allow from there; the tangent is then assembled afresh. The
+guard's time counts as assembly. Without it the tool on tissue above raised
+on 1,200, 3,042 and 8,664 tetrahedra with d-hat 2–3 mm (residual NaN); with it
+every step of those runs finishes with :math:`J > 0`
+(``tests/test_realtime.py``). Not caught: an energy finite for
+:math:`J \le 0`, and an accepted state whose new boundary values or carried
+nodes invert a cell themselves; those still raise as before.
 
 **Not a** :class:`~hyperfem.simulation.Simulation`. Every other time stepper
 (implicit, semi-implicit, explicit) runs as a ``Simulation`` with its outputs;
@@ -254,7 +258,7 @@ class RealtimeStep:
         linear_iterations: Krylov iterations of the step (1 per solve for a direct solve).
         linear_failures: Linear solves that did not converge (e.g. ``ksp_max_it``
             reached); their Newton updates were still applied.
-        initial_residual: :math:`\\|r_0\\|` at the warm start.
+        initial_residual: :math:`\\|r_0\\|` at the warm start (pulled back where it inverted a cell).
         residual_norm: :math:`\\|r\\|` left at the end of the step.
         relative_residual: :math:`\\|r\\|/\\|r_0\\|` (0 when :math:`r_0 = 0`).
         converged: Whether the tolerance was met within the budget.
@@ -267,8 +271,8 @@ class RealtimeStep:
         min_distance: With contacts: the smallest distance of a contact node from its obstacle at the end
             (``nan`` without); always > 0.
         contact_cutbacks: With contacts: Newton updates (and the start guess) the collision filters shortened.
-        inversion_cutbacks: Newton updates that inverted a cell and were taken again shortened by the exact
-            inversion filter (P1 simplices; "Inversion" in the module docstring).
+        inversion_cutbacks: Newton updates (and the start) that inverted a cell and were taken again shortened
+            by the exact inversion filter (P1 simplices; "Inversion" in the module docstring).
     """
 
     step: int
@@ -837,8 +841,8 @@ class RealtimeStepper:
         u.x.scatter_forward()
 
     def _anchor(self, t_from: float) -> np.ndarray:
-        """The accepted state with the new boundary values and the nodes the obstacles' move overran carried along
-        (collective): the fallback start of a step."""
+        """The accepted state with the new boundary values and the nodes the obstacles' move overran carried along:
+        the fallback start of a step."""
         anchor = self._u_n.x.array.copy()
         for energy in () if self._contact is None else self._contact.energies:
             carried = getattr(energy, "carried", None)
@@ -851,21 +855,33 @@ class RealtimeStepper:
 
     def _uninvert_start(self, t_from: float, tally: _Tally) -> float:
         """The start of the step inverted a cell (a non-finite residual): move it back toward :meth:`_anchor` as far as
-        the exact inversion filter asks (collective; on the segment the collision filters already cleared). Returns
-        the new residual norm."""
+        the exact inversion filter and the collision filters allow, both measured from the anchor (collective; the
+        anchor refused by a contact raises as in :meth:`_contact_start`). Returns the new residual norm."""
         assert self._inversion is not None
         u = self.problem.u
         guess = u.x.array.copy()
         anchor = self._anchor(t_from)
         u.x.array[:] = anchor
         u.x.scatter_forward()
+        why = "" if self._contact is None else self._contact.refusal()
+        if why:
+            self._restore()
+            raise ConvergenceError(
+                f"RealtimeStepper: no start for the step to t = {self.problem.t_n + self._step_dt:g} that inverts "
+                f"no cell: {why}",
+                self.problem.t_n,
+                self.history,
+            )
         step = self._z
         n = len(step.array_r)
         step.array_w[:] = anchor[:n] - guess[:n]
         fraction = self._inversion.step_fraction(u.x.petsc_vec, step)
+        if self._contact is not None:  # a segment from the anchor can enter a convex obstacle the guess is out of
+            fraction = min(fraction, self._contact_fraction(u.x.petsc_vec, step, tally))
         u.x.array[:] = anchor + fraction * (guess - anchor)
         u.x.scatter_forward()
-        tally.inversions += 1
+        tally.inversions += int(fraction < 1.0)
+        self._stale = True
         return self._assemble_residual()
 
     def _contact_fraction(self, x: PETSc.Vec, y: PETSc.Vec, tally: _Tally) -> float:
@@ -913,7 +929,9 @@ class RealtimeStepper:
         fraction = min(step, self._inversion.step_fraction(x, self._du))
         x.axpy(-fraction, self._du)
         self.problem.u.x.scatter_forward()
-        tally.inversions += int(fraction < step)
+        if fraction < step:
+            tally.inversions += 1
+            self._stale = True  # a tangent whose update inverts a cell: assemble a fresh one
         return self._assemble_residual()
 
     def _refresh_tangent(self, tally: _Tally) -> None:
