@@ -21,18 +21,29 @@ one pass (slave nodes only) the surfaces may part between the slave nodes,
 which lowers the energy of a patch test below the homogeneous state:
 measured on two cubes of non-matching meshes pulled 20 % apart, one pass
 gives the uniaxial stress 0.22 % off with a wavy interface, two passes the
-closed form to 6e-9. A P2 group is split into four linear triangles on its
-nodes, as for contact.
+closed form to 6e-9.
+
+**P2, Q1 and Q2 groups** are tied through the collision proxy of
+:mod:`~hyperfem.contact.proxy`, as for contact by default: its points
+:math:`y = Wx`, each tied to the other group's proxy triangles, give the rows
+:math:`B_y W`. On the nodes alone (a P2 facet four linear triangles, a Q1
+face two) the patch test below missed the uniaxial stress by 0.43 % (P2
+tetrahedra), 0.074 % (Q1) and 3.7 % (Q2): a node tied to the other group's
+linear sub-triangles cannot follow its curved (or bilinear) face, and the
+consistent loads of a uniform traction are not carried. Through the proxy
+(a facet edge in 4 segments for degree 2, 2 for Q1) the tied points pin the
+faces to each other and the test passes to 2e-10–6e-10
+(``tests/test_contact_tie.py``).
 
 **2D** (triangles and quadrilaterals, degree 1 and 2): the groups are edges,
 each node is tied to the closest point of the other group's segments
 (:func:`closest_on_segments`; a P2 edge is two segments on its three nodes).
 The patch test (``tests/test_contact_2d.py``: two non-matching squares 5e-4
 apart, glued and pulled 20 %) gives the closed-form plane-strain stress to
-4e-9 on P1 and Q1. On P2 it is 2.3e-4 off: the tie's forces act through the
-linear sub-segments, which cannot reproduce the consistent loads
-(1, 4, 1)/6 of a uniform traction on non-matching P2 edges (the P2
-surfaces of contact have the same limit).
+4e-9 on P1 and Q1. On P2 edges through the proxy it does to 2e-10 and 3e-10 (on the
+nodes alone 2.3e-4 and 2.5e-4 off: the tie's forces acted through the linear
+sub-segments, which cannot reproduce the consistent loads (1, 4, 1)/6 of a
+uniform traction on non-matching P2 edges).
 
 The penalty :math:`k` = :data:`TIE_FACTOR` times the mean tangent diagonal at
 the tied nodes by default: the tie then yields by about :math:`10^{-8}` of
@@ -258,7 +269,7 @@ class TieBarrier:
         self.problem = problem
         self.comm = problem.domain.comm
         self.where = contact.where
-        surface = contact_surface(problem, [contact.slave, contact.master], contact.where, subdivision=1)
+        surface = contact_surface(problem, [contact.slave, contact.master], contact.where)
         self.surface: ContactSurface = surface
         X = surface.X
         sizes = np.linalg.norm(X[surface.faces][:, 1] - X[surface.faces][:, 0], axis=1)
@@ -294,9 +305,13 @@ class TieBarrier:
         Raises:
             ParameterError: A node farther than ``tolerance`` from the facets (the groups do not face).
         """
-        X = surface.X
-        tied = np.flatnonzero(surface.group == nodes)
-        facets = surface.faces[np.all(surface.group[surface.faces] == faces, axis=1)]
+        # The collision proxy's points and facets where the surface has one (y = W x; the tie rows B_y W).
+        W = surface.proxy_map
+        X = surface.to_collision(surface.X)
+        group = surface.group if W is None else surface.group[W.indices[W.indptr[:-1]]]
+        all_facets = surface.collision_faces
+        tied = np.flatnonzero(group == nodes)
+        facets = all_facets[np.all(group[all_facets] == faces, axis=1)]
         name = (self.contact.slave, self.contact.master)
         if not len(facets):
             kind = "triangles" if self.dim == 3 else "segments"
@@ -306,14 +321,15 @@ class TieBarrier:
         if len(distance) and distance.max() > tolerance:
             k = int(distance.argmax())
             raise ParameterError(
-                f"{self.where}: the node of {name[nodes]!r} at {tuple(float(f'{v:.6g}') for v in X[tied[k]])} is "
+                f"{self.where}: the point of {name[nodes]!r} at {tuple(float(f'{v:.6g}') for v in X[tied[k]])} is "
                 f"{distance[k]:.3g} from {name[faces]!r} (tolerance {tolerance:.3g}): the groups do not face each other"
             )
         m = len(tied)
         rows = np.repeat(np.arange(m), 1 + facets.shape[1])
         cols = np.column_stack([tied, facets[index]]).ravel()
         vals = np.column_stack([np.ones(m), -weights]).ravel()
-        return sp.csr_matrix((vals, (rows, cols)), shape=(m, surface.size)), distance
+        B = sp.csr_matrix((vals, (rows, cols)), shape=(m, len(X)))
+        return (B if W is None else (B @ W).tocsr()), distance
 
     # -- the ExternalEnergy contract ----------------------------------------
     def update(self, t: float) -> None:
