@@ -53,6 +53,10 @@ way). The default stiffness is scaled by nodes per vertex
 (:func:`~hyperfem.contact.bodies.surface_defaults`), so that a pressure
 gives the same gap with or without the proxy.
 
+Ties (:mod:`~hyperfem.contact.tie`) go through the same proxy: its points are
+tied to the other group's proxy triangles, and the glued P2/Q1/Q2 patch test
+passes to 2e-10–6e-10 (on the nodes 0.074–3.7 % off).
+
 Lattice points on a facet edge or corner are shared with the neighbouring
 facets (found by their rows of :math:`W`), so the proxy is a closed
 surface wherever the facets are. Its vertices are ordered by their rest
