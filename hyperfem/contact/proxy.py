@@ -83,6 +83,7 @@ def default_subdivision(facet: str, degree: int) -> int:
     """
     return DEFAULT_SUBDIVISION if degree == 2 or facet == "quadrilateral" else 1
 
+
 _EXACT = 2**30  # weights are compared on this grid (the lattice's are dyadic or rational with small denominators)
 
 
@@ -91,6 +92,11 @@ def _interval(k: int, t: np.ndarray) -> np.ndarray:
     if k == 1:
         return np.stack([1.0 - t, t], axis=1)
     return np.stack([(1.0 - t) * (1.0 - 2.0 * t), t * (2.0 * t - 1.0), 4.0 * t * (1.0 - t)], axis=1)
+
+
+def _triangle_points(n: int) -> list[tuple[int, int]]:
+    """The lattice points :math:`(i, j)`, :math:`i + j \\le n`, of a triangle cut into :math:`n^2`, row by row."""
+    return [(i, j) for j in range(n + 1) for i in range(n + 1 - j)]
 
 
 def reference_lattice(facet: str, degree: int, resolution: int) -> tuple[np.ndarray, np.ndarray]:
@@ -128,7 +134,7 @@ def reference_lattice(facet: str, degree: int, resolution: int) -> tuple[np.ndar
         p, q, r, w = index[:-1, :-1], index[:-1, 1:], index[1:, :-1], index[1:, 1:]
         sub = np.concatenate([np.stack([p, q, w], -1).reshape(-1, 3), np.stack([p, w, r], -1).reshape(-1, 3)])
         return S.reshape(-1, S.shape[-1]), sub
-    points = [(i, j) for j in range(n + 1) for i in range(n + 1 - j)]
+    points = _triangle_points(n)
     where = {ij: k for k, ij in enumerate(points)}
     xi = np.array(points, dtype=float) / n
     lam = np.stack([1.0 - xi[:, 0] - xi[:, 1], xi[:, 0], xi[:, 1]], axis=1)
@@ -156,7 +162,7 @@ def _on_facet_boundary(facet: str, resolution: int) -> np.ndarray:
     if facet == "quadrilateral":
         j, i = np.divmod(np.arange((n + 1) ** 2), n + 1)
         return (i == 0) | (i == n) | (j == 0) | (j == n)
-    points = np.array([(i, j) for j in range(n + 1) for i in range(n + 1 - j)])
+    points = np.array(_triangle_points(n))
     return (points[:, 0] == 0) | (points[:, 1] == 0) | (points.sum(axis=1) == n)
 
 
