@@ -466,6 +466,103 @@ def test_sphere_barrier_taylor_and_psd_projection():
     assert projected == pytest.approx(0.5 * b2[:, None, None] * np.einsum("mi,mj->mij", n, n), rel=1e-9, abs=1e-12)
 
 
+def test_sphere_tangent_projected_while_the_nodes_move_exact_once_they_settle():
+    """The tangent's choice (``hessian(u)``): projected at the first tangent, after the nodes moved by d-hat, after
+    ``project_tangent()`` and after the sphere moved; exact (the indefinite blocks) once no node moved by d-hat; a
+    plane's is never marked exact (its exact Hessian is PSD already)."""
+    from hyperfem.contact import SphereContact
+    from hyperfem.contact.nodal import SETTLED_MOVE
+
+    problem = _block(n=2)
+    contact = SphereContact("bottom", center=(0.5, 0.5, -5.004), radius=5.0, dhat=5e-2, stiffness=0.5,
+                            motion=(0.0, 0.0, -1.0))
+    barrier_term = contact.bind(problem)
+    comm = problem.domain.comm
+    u = 1e-4 * np.random.default_rng(comm.rank + 7).standard_normal(problem.u.x.array.size)
+    _, exact = barrier_term.hessian(u, project=False)
+    _, projected = barrier_term.hessian(u, project=True)
+
+    def chosen(v):
+        blocks = barrier_term.hessian(v)[1]
+        kind = "exact" if barrier_term.exact_tangent else "projected"
+        assert blocks == pytest.approx(exact if kind == "exact" else projected, rel=1e-12, abs=1e-14)
+        return kind
+
+    assert chosen(u) == "projected"  # the first tangent
+    assert chosen(u) == "exact"  # settled
+    barrier_term.project_tangent()
+    assert [chosen(u), chosen(u), chosen(u)] == ["projected", "projected", "exact"]  # then settles anew
+    moved = u.copy()
+    moved[barrier_term.nodes.dofs[:, 2]] += 0.5 * SETTLED_MOVE * barrier_term.dhat  # still settled
+    _, exact = barrier_term.hessian(moved, project=False)
+    _, projected = barrier_term.hessian(moved, project=True)
+    assert chosen(moved) == "exact"
+    moved[barrier_term.nodes.dofs[:, 2]] += SETTLED_MOVE * barrier_term.dhat  # moving again
+    _, exact = barrier_term.hessian(moved, project=False)
+    _, projected = barrier_term.hessian(moved, project=True)
+    assert [chosen(moved), chosen(moved)] == ["projected", "exact"]
+    barrier_term.update(0.0)  # the sphere (re)placed: projected until the nodes settle again
+    assert [chosen(moved), chosen(moved)] == ["projected", "exact"]
+    plane = _plane().bind(_block(n=2))
+    plane.hessian(np.zeros_like(u))
+    plane.hessian(np.zeros_like(u))
+    assert plane.exact_tangent is False
+
+
+def _ball_dragged(comm, monkeypatch, rounds: int) -> tuple[dict, list[bool], object]:
+    """A ball (R = 0.2) pressed 0.11 into a 2 x 1 x 0.5 slab (12 x 6 x 3 boxes, clamped bottom) and dragged 0.4
+    along x, frictionless, in 8 steps: the surgery demo's path with an analytic ball."""
+    import hyperfem.solver.newton as newton
+    from hyperfem.contact import SphereContact
+    from hyperfem.contact.obstacles import Ball
+    from hyperfem.solver.external import ExternalTerms
+
+    class Path(Ball):
+        def translation(self, t: float) -> np.ndarray:
+            return np.array([max(t - 0.5, 0.0) / 0.5 * 0.4, 0.0, -min(t, 0.5) / 0.5 * 0.11])
+
+    monkeypatch.setattr(newton, "CARRY_ROUNDS", rounds)
+    calls: list[bool] = []
+    carry_more = ExternalTerms.carry_more
+
+    def counted(self, carried):
+        more = carry_more(self, carried)
+        calls.append(more is not None)
+        return more
+
+    monkeypatch.setattr(ExternalTerms, "carry_more", counted)
+    mesh = dmesh.create_box(comm, [np.zeros(3), np.array([2.0, 1.0, 0.5])], [12, 6, 3])
+    groups = {"bottom": lambda x: np.isclose(x[2], 0.0), "top": lambda x: np.isclose(x[2], 0.5)}
+    domain = hf.Domain.from_locators(mesh, groups, source="slab")
+    problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS),
+                                     bcs=[hf.PrescribedDisplacement("bottom", [0.0, 0.0, 0.0])])
+    contact = SphereContact("top", center=(0.6, 0.5, 0.71), radius=0.2, dhat=5e-3)
+    ball = contact.bind(problem)
+    ball.obstacle = Path(contact.center, contact.radius, None, contact.profile)
+    ball.update(0.0)
+    solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-9}, external_energies=[ball])
+    measures = [Recorder(ball), Reaction("bottom")]
+    summary = Simulation(problem, solver, hf.StepPolicy(increment=1 / 8), measures).run()
+    return summary, calls, ball
+
+
+def test_a_lift_that_pushes_a_node_into_the_ball_carries_it_too(monkeypatch):
+    """The predictor carries the nodes the dragged ball overruns; its tangent solve pressed a node ahead of the ball
+    into it, the start was refused and the step cut back (at t = 0.875 here; on 14 x 7 x 7 boxes down to 1/128 of
+    the path, 842 Newton iterations instead of 146). Now the lift carries that node too and is taken again: every
+    step is taken whole, none penetrates, the force equals -reaction and the end state is the cut-back run's."""
+    summary, calls, ball = _ball_dragged(MPI.COMM_WORLD, monkeypatch, rounds=3)
+    rows = summary["rows"]
+    assert summary["completed"] and len(rows) == 9 and all(row["rejected"] == 0 for row in rows)
+    assert any(calls)  # a lift was taken again with more nodes carried
+    assert all(row["contact_min_distance"] > 0.0 for row in rows)
+    force = np.array(rows[-1]["contact_force"])
+    assert force == pytest.approx(-np.array(rows[-1]["reaction_bottom"]), rel=1e-6, abs=1e-9)
+    old, old_calls, _ = _ball_dragged(MPI.COMM_WORLD, monkeypatch, rounds=0)
+    assert not old_calls and sum(row["rejected"] for row in old["rows"]) >= 1  # what it was: refused, cut back
+    assert force == pytest.approx(old["rows"][-1]["contact_force"], rel=1e-6)
+
+
 HERTZ_RADIUS = 0.5
 
 

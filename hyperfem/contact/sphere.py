@@ -156,6 +156,7 @@ class SphereBarrier(NodalBarrier):
 
     behind = "on or inside the sphere"
     shape = "sphere"
+    curved = True
     projector: np.ndarray | None = None
     """Offsets and steps are projected with it (a cylinder's :math:`I - a a^T`; ``None``: a ball)."""
 

@@ -284,6 +284,41 @@ class ExternalTerms:
         self.u.x.array[:] = self._anchor
         return self._carried("carried", self._anchor, self.anchor_time)
 
+    def back_to_anchor(self) -> None:
+        """Put the state back at the anchor (the last converged state)."""
+        self.u.x.array[:] = self._anchor
+
+    def carries_more(self) -> bool:
+        """Whether an energy can name the nodes a lift pushed into its obstacle (:meth:`carry_more`)."""
+        return any(hasattr(e, "overrun_after_lift") for e in self.energies)
+
+    def carry_more(self, carried: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+        """Add the nodes a lift pushed into an obstacle to ``carried``; put the state back at the anchor.
+
+        The predictor's tangent solve with the carried nodes prescribed moves
+        their neighbours too, and can push one that was clear of the obstacle
+        into it (a ball dragged across a slab presses the surface ahead of it
+        down and forward). Each energy with ``overrun_after_lift(u, anchor,
+        t_anchor)`` names the nodes of the lifted state that keep less of
+        their distance than carried rigidly with the obstacle from the anchor,
+        and their increment; the solver lifts again with them carried too
+        (:class:`~hyperfem.solver.newton.NewtonSolver`).
+
+        Returns:
+            ``carried`` with the new nodes (global dofs and increments), or
+            ``None`` where no energy names a new one on any rank (collective).
+        """
+        lifted = self.u.x.array.copy()
+        self.back_to_anchor()
+        more = self._carried("overrun_after_lift", lifted, self._anchor, self.anchor_time)
+        if more is None:
+            return None
+        rows, values = carried
+        new = ~np.isin(more[0], rows)
+        if not self.comm.allreduce(int(new.sum()), op=MPI.SUM):
+            return None
+        return np.concatenate([rows, more[0][new]]), np.concatenate([values, more[1][new]])
+
     def carry_by_supports(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Put the state back at the anchor and give the increments of free nodes that prescribed ones push.
 

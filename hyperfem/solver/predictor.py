@@ -71,6 +71,7 @@ class BoundaryPredictor:
         admissible: Callable[[], bool],
         tangent_terms: Callable[[PETSc.Mat], None] | None = None,
         carried: tuple[np.ndarray, np.ndarray] | None = None,
+        halve: bool = True,
     ) -> bool:
         r"""Move the state by the tangent response to the boundary increment.
 
@@ -91,9 +92,12 @@ class BoundaryPredictor:
             carried: More prescribed increments: global dofs (this rank's) and
                 values, lifted like the Dirichlet ones (the nodes an obstacle
                 pushes, :meth:`~hyperfem.solver.external.ExternalTerms.carry`).
+            halve: Shorten an inadmissible step as above; ``False``: apply the whole step and leave the state
+                there even if it is inadmissible (the caller looks at it: the nodes a carried lift pushed into
+                an obstacle, :meth:`~hyperfem.solver.external.ExternalTerms.carry_more`).
 
         Returns:
-            Whether a step was applied.
+            Whether a step was applied (with ``halve=False``: whether the whole step is admissible).
         """
         x = self._state
         self.problem.u.x.petsc_vec.copy(x)
@@ -104,7 +108,7 @@ class BoundaryPredictor:
         try:
             if not self._solve(ksp, x, du, preconditioner, tangent_terms, carried):
                 return False
-            return self._apply(x, du, admissible)
+            return self._apply(x, du, admissible, MAX_PREDICTOR_HALVINGS if halve else 0)
         finally:
             du.destroy()
 
@@ -183,11 +187,17 @@ class BoundaryPredictor:
         self.direct_fallbacks += 1
         return reason > 0 and bool(np.isfinite(du.norm()))
 
-    def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool]) -> bool:
-        """Move the unknown to ``x + 2^-k du`` for the smallest admissible ``k``; back to ``x`` if none."""
+    def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool], halvings: int) -> bool:
+        """Move the unknown to ``x + 2^-k du`` for the smallest admissible ``k < halvings``; back to ``x`` if none
+        (``halvings = 0``: to ``x + du``, admissible or not)."""
         u = self.problem.u
+        if not halvings:
+            assign_state(x, u)
+            u.x.petsc_vec.axpy(1.0, du)
+            u.x.scatter_forward()
+            return admissible()
         scale = 1.0
-        for _ in range(MAX_PREDICTOR_HALVINGS):
+        for _ in range(halvings):
             assign_state(x, u)
             u.x.petsc_vec.axpy(scale, du)
             u.x.scatter_forward()
