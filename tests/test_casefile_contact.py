@@ -104,6 +104,11 @@ def test_block_on_plane_matches_the_closed_form_and_the_reaction(shared_tmp):
         (SPHERE | {"radius": 0.0}, "contact[0].radius: must be > 0"),
         (SPHERE | {"center": [0.5, 0.5]}, "contact[0].center: 2 components"),
         (SPHERE | {"motion": [0.0, 1.0]}, "contact[0].motion: 2 components for a center of 3"),
+        (SPHERE | {"motion": [0.0, 0.0, 1.0], "path": {"times": [0.0, 1.0], "points": [[0, 0, 0], [0, 0, 1]]}},
+         "contact[0].path: give either path or motion, not both"),
+        (SPHERE | {"path": {"times": [0.0, 1.0], "points": [[0.0, 0.0], [0.0, 0.1]]}},
+         "contact[0].path.points: rows of 2 components for a center of 3"),
+        ({"path": {"times": [0.0, 1.0]}}, "contact[0].path: missing required key 'points'"),
     ],
 )
 def test_bad_contact_entries_name_their_key(shared_tmp, change, expected):
@@ -150,6 +155,37 @@ def test_sphere_contact_in_a_case_file(shared_tmp):
     for row in rows[1:]:  # (the nodes nearest the top of the sphere reach it after the first step)
         assert row["contact_min_distance"] > 0.0
         assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8, abs=1e-6)
+
+
+def test_sphere_path_in_a_case_file_equals_its_motion(shared_tmp):
+    """``path = {times, points}`` on a sphere (as on a tool): the script prints ``motion=Waypoints(...)`` and
+    compiles; the sphere pushed 2 cm up into the resting block along the path gives the forces of ``motion`` to
+    round-off, balanced by the reaction of the held top."""
+    import tomllib
+
+    from hyperfem.app.casefile import check_case
+
+    runs = []
+    for i, keys in enumerate(({"path": {"times": [0.0, 1.0], "points": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.02]]}},
+                              {"motion": [0.0, 0.0, 0.02]})):
+        data = tomllib.loads(CASE.read_text())
+        data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
+        data["contact"][0] = {"boundary": "bottom", **SPHERE, **keys}
+        data["bc"][2]["value"] = [0.0]
+        data["output"].update({"fields": [], "checkpoint": False, "directory": str(shared_tmp / f"path{i}")})
+        case = check_case(data, shared_tmp / f"path{i}.toml")
+        text = script(case)
+        compile(text, "sphere_path.py", "exec")
+        if i == 0:
+            assert "motion=Waypoints(times=(0.0, 1.0), points=((0.0, 0.0, 0.0), (0.0, 0.0, 0.02)))" in " ".join(
+                text.split())
+        summary = build(case).simulation.run()
+        assert summary["completed"]
+        runs.append(summary["rows"])
+    assert runs[0][-1]["contact_force"][2] > 1e3
+    for a, b in zip(runs[0][1:], runs[1][1:], strict=True):
+        assert a["contact_force"] == pytest.approx(b["contact_force"], rel=1e-10, abs=1e-8)
+        assert a["contact_force"][2] == pytest.approx(-a["reaction_top_Fz"], rel=1e-8, abs=1e-6)
 
 
 def test_cylinder_contact_in_a_case_file(shared_tmp):

@@ -514,12 +514,8 @@ def _ball_dragged(comm, monkeypatch, rounds: int) -> tuple[dict, list[bool], obj
     along x, frictionless, in 8 steps: the surgery demo's path with an analytic ball."""
     import hyperfem.solver.newton as newton
     from hyperfem.contact import SphereContact
-    from hyperfem.contact.obstacles import Ball
+    from hyperfem.loading import Waypoints
     from hyperfem.solver.external import ExternalTerms
-
-    class Path(Ball):
-        def translation(self, t: float) -> np.ndarray:
-            return np.array([max(t - 0.5, 0.0) / 0.5 * 0.4, 0.0, -min(t, 0.5) / 0.5 * 0.11])
 
     monkeypatch.setattr(newton, "CARRY_ROUNDS", rounds)
     calls: list[bool] = []
@@ -536,10 +532,8 @@ def _ball_dragged(comm, monkeypatch, rounds: int) -> tuple[dict, list[bool], obj
     domain = hf.Domain.from_locators(mesh, groups, source="slab")
     problem = hf.HyperelasticProblem(domain, lambda F: hf.materials.neo_hookean(F, PARAMS),
                                      bcs=[hf.PrescribedDisplacement("bottom", [0.0, 0.0, 0.0])])
-    contact = SphereContact("top", center=(0.6, 0.5, 0.71), radius=0.2, dhat=5e-3)
-    ball = contact.bind(problem)
-    ball.obstacle = Path(contact.center, contact.radius, None, contact.profile)
-    ball.update(0.0)
+    path = Waypoints(times=(0.0, 0.5, 1.0), points=((0.0, 0.0, 0.0), (0.0, 0.0, -0.11), (0.4, 0.0, -0.11)))
+    ball = SphereContact("top", center=(0.6, 0.5, 0.71), radius=0.2, dhat=5e-3, motion=path).bind(problem)
     solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-9}, external_energies=[ball])
     measures = [Recorder(ball), Reaction("bottom")]
     summary = Simulation(problem, solver, hf.StepPolicy(increment=1 / 8), measures).run()
@@ -636,6 +630,43 @@ def test_sphere_one_rank_equals_two_ranks():
     one = _indentation_state(MPI.COMM_SELF) if comm.rank == 0 else None
     one = comm.bcast(one, root=0)
     assert _indentation_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-14)
+
+
+@pytest.mark.parametrize(
+    "motion, expected",
+    [
+        (lambda t: (0.0, t), "a motion path must give 3 finite components, got array([0., 0.]) at t = 0"),
+        (lambda t: (0.0, 0.0, float("nan")), "a motion path must give 3 finite components"),
+        (lambda t: "down", "a motion path must give 3 numbers at t = 0"),
+    ],
+)
+def test_a_bad_obstacle_path_is_one_line(motion, expected):
+    """A path ``motion`` (a callable ``t -> s(t)``) is checked at t = 0, for a sphere, a plane and a cylinder."""
+    from hyperfem.contact import CylinderContact, SphereContact
+
+    for make in (lambda m: SphereContact("top", center=(0.5, 0.5, 2.0), radius=0.5, motion=m),
+                 lambda m: PlaneContact("bottom", point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), motion=m),
+                 lambda m: CylinderContact("top", point=(0.5, 0.0, 2.0), axis=(0, 1, 0), radius=0.5, motion=m)):
+        with pytest.raises(ParameterError) as info:
+            make(motion)
+        message = str(info.value)
+        assert "\n" not in message and expected in message and "Contact on '" in message
+
+
+def test_a_plane_moved_along_a_path_equals_the_same_motion():
+    """The block pressed by the plane moved up 0.2 along a path (Waypoints, in two legs) equals the plane moved by
+    ``motion`` with the same profile: the same forces to round-off at t = 0.5 and 1."""
+    from hyperfem.loading import Waypoints
+
+    forces = []
+    for motion in ((0.0, 0.0, 0.2), Waypoints(times=(0.0, 0.5, 1.0), points=((0, 0, 0), (0, 0, 0.1), (0, 0, 0.2)))):
+        problem = _block(delta=0.0)
+        contact = _plane(motion=motion).bind(problem)
+        solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-10}, external_energies=[contact])
+        rows = Simulation(problem, solver, hf.StepPolicy(increment=0.5), [Recorder(contact)]).run()["rows"]
+        forces.append([row["contact_force"] for row in rows[1:]])
+    assert forces[0][-1][2] > 0.01
+    assert np.array(forces[1]) == pytest.approx(np.array(forces[0]), rel=1e-10, abs=1e-14)
 
 
 def test_sphere_bad_input_is_one_line():

@@ -604,6 +604,14 @@ def _rotation(contact: ContactSpec) -> Call | None:
     return Call.of(RigidRotation, r.axis, Call.of(Scaled, _profile(r.profile, explicit=True), r.angle), r.center)
 
 
+def _motion(contact: ContactSpec, kwargs: dict[str, object]) -> None:
+    """A moving obstacle's or tool's ``motion``: the vector, or its ``path`` as :class:`~hyperfem.loading.Waypoints`."""
+    if contact.motion is not None:
+        kwargs["motion"] = contact.motion
+    if contact.path is not None:
+        kwargs["motion"] = Call.of(Waypoints, times=contact.path.times, points=contact.path.points)
+
+
 def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
     """``[[contact]]`` of ``type = "self"`` or ``"pair"``: :class:`~hyperfem.contact.SurfaceContact`;
     ``"tool"``: :class:`~hyperfem.contact.ToolContact` (its file relative to the case file), bound to the problem."""
@@ -613,10 +621,7 @@ def _surface_contact(case: Case, contact: ContactSpec, name: str) -> Call:
     if tool:
         assert contact.file is not None
         kwargs["file"] = _path(case, contact.file)
-        if contact.motion is not None:
-            kwargs["motion"] = contact.motion
-        if contact.path is not None:
-            kwargs["motion"] = Call.of(Waypoints, times=contact.path.times, points=contact.path.points)
+        _motion(contact, kwargs)
         profile = _profile(contact.profile)
         if profile is not None:
             kwargs["profile"] = profile
@@ -656,9 +661,10 @@ def _contact(case: Case, contact: ContactSpec, name: str, several: bool) -> Call
         "plane": (PlaneContact, {"point": contact.point, "normal": contact.normal}),
     }
     obstacle, kwargs = shapes[contact.type]
-    for key in ("dhat", "stiffness", "motion"):
+    for key in ("dhat", "stiffness"):
         if getattr(contact, key) is not None:
             kwargs[key] = getattr(contact, key)
+    _motion(contact, kwargs)
     if contact.friction > 0.0:
         kwargs["friction"] = contact.friction
         if contact.friction_epsilon is not None:

@@ -460,6 +460,8 @@ def _barrier_keys(obstacle: str) -> dict[str, Key]:
         "motion": Key("numbers", example=(0.0, 0.0, 0.1),
                       help=f"translation of the {obstacle} in m at f = 1 (a moving tool); default none"),
         "profile": Key("any", shape="profile", default="linear", help="time profile f(t) scaling motion"),
+        "path": Key("table", help=f"instead of motion and profile: the {obstacle}'s translation through waypoints "
+                    "(hf.loading.Waypoints: piecewise linear, held at its ends; pressed in, then dragged)"),
         "friction": Key("number", minimum=0.0, default=0.0,
                         help="Coulomb coefficient mu >= 0 (0: frictionless); smoothed and lagged per step as in IPC"),
         "friction_epsilon": Key("number", above=0.0, example=1.0e-4,
@@ -1494,7 +1496,7 @@ def _surface_contact(where: str, kind: str, values: Mapping, source: Path) -> Co
 
 
 def _waypoints(values: Mapping, where: str) -> Waypoints:
-    """A tool's ``path = {times, points}`` (not with ``motion`` or ``profile``)."""
+    """A moving obstacle's or tool's ``path = {times, points}`` (not with ``motion`` or ``profile``)."""
     for other in ("motion", "profile"):
         if other in values:
             raise CaseFileError(f"{where}: give either path or {other}, not both")
@@ -1546,6 +1548,10 @@ def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
                 f"{where}.{name}: {len(values[name])} components for a {anchor} of {len(values[anchor])}"
             )
     profile = check_profile(values["profile"], join(where, "profile")) if "profile" in values else None
+    path = _waypoints(values, join(where, "path")) if "path" in values else None
+    if path is not None and len(path.points[0]) != len(values[anchor]):
+        raise CaseFileError(f"{where}.path.points: rows of {len(path.points[0])} components for a {anchor} of "
+                            f"{len(values[anchor])}")
     if "rotation" in values and len(values[anchor]) != 3:
         raise CaseFileError(f"{where}.rotation: a rotation needs a 3D {kind} ({anchor} of {len(values[anchor])})")
     return ContactSpec(
@@ -1561,6 +1567,7 @@ def _contact(index: int, table: Mapping, source: Path) -> ContactSpec:
         dhat=values.get("dhat"),
         stiffness=values.get("stiffness"),
         motion=values.get("motion"),
+        path=path,
         profile=profile,
         friction=values.get("friction", 0.0),
         friction_epsilon=values.get("friction_epsilon"),

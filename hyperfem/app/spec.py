@@ -293,7 +293,7 @@ class ContactSpec:
         stiffness: Barrier stiffness, or ``None`` (the library default).
         motion: Translation of the obstacle at profile 1, or ``None`` (it stays).
         profile: Time profile of the motion, or ``None`` (linear).
-        path: A tool's translation through waypoints (instead of motion and profile), or ``None``.
+        path: A moving obstacle's or tool's translation through waypoints (instead of motion and profile), or ``None``.
         rotation: A sphere's, cylinder's or tool's rotation, composed with the translation, or ``None``.
         center: The sphere's centre (at profile 0); ``None`` for a plane.
         radius: The sphere's or cylinder's radius; ``None`` for a plane.

@@ -29,7 +29,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from hyperfem.contact.ccd import CCD_SAFETY
-from hyperfem.contact.obstacles import Cylinder
+from hyperfem.contact.obstacles import Cylinder, Motion
 from hyperfem.contact.settings import check_contact_settings
 from hyperfem.contact.sphere import SphereBarrier
 from hyperfem.errors import ParameterError
@@ -52,7 +52,8 @@ class CylinderContact:
         radius: :math:`R > 0`.
         dhat: Barrier width :math:`\hat d > 0` (``None``: :func:`~hyperfem.contact.defaults.default_dhat`).
         stiffness: Barrier stiffness :math:`\kappa > 0` (``None``: the mean tangent diagonal at the contact nodes).
-        motion: A translation of the cylinder, scaled by ``profile(t)`` (``None``: it stays).
+        motion: A translation of the cylinder, scaled by ``profile(t)`` (``None``: it stays), or a path ``t -> s(t)``
+            (e.g. :class:`~hyperfem.loading.Waypoints`: pressed in, then dragged; ``profile`` is then unused).
         profile: :math:`f(t)` of the translation (default: the load factor).
         safety: The collision filter's :math:`s \in (0, 1)`.
         name: Prefix of the output columns (``contact_force``, ...).
@@ -71,7 +72,7 @@ class CylinderContact:
     radius: float
     dhat: float | None = None
     stiffness: float | None = None
-    motion: Sequence[float] | None = None
+    motion: Motion = None
     profile: Callable[[float], float] = linear_profile
     safety: float = CCD_SAFETY
     name: str = "contact"

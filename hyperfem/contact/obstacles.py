@@ -27,7 +27,9 @@ then travels with the translation:
 .. math::
     x(t) = R\bigl(\theta(t)\,\hat a_r\bigr)(X - c_r) + c_r + f(t)\,m,
 
-so the cylinder's axis point is :math:`c(t) = R(c_0 - c_r) + c_r + f(t)m`
+(or, with a path ``motion`` such as :class:`~hyperfem.loading.Waypoints`, :math:`s(t)` in place of
+:math:`f(t)\,m`: a probe pressed in, then dragged), so the cylinder's axis point is
+:math:`c(t) = R(c_0 - c_r) + c_r + f(t)m`
 and its axis :math:`a(t) = R a_0`, a plane's point :math:`p(t)` likewise and its
 normal :math:`n(t) = R n_0`. A ball turned about its own centre does
 not change its shape; its surface moves all the same, which matters with
@@ -54,11 +56,18 @@ __all__ = [
     "Cylinder",
     "HalfSpace",
     "RigidPlacement",
+    "Motion",
     "check_ball",
+    "check_motion",
     "check_plane",
     "check_rotation",
     "obstacle_time",
 ]
+
+
+Motion = Sequence[float] | Callable[[float], Sequence[float]] | None
+"""An obstacle's translation: a vector scaled by ``profile(t)``, a path ``t -> s(t)`` (e.g.
+:class:`~hyperfem.loading.Waypoints`; ``profile`` is then unused), or ``None`` (it stays)."""
 
 
 def obstacle_time(problem: object, t: float) -> float:
@@ -108,14 +117,16 @@ class RigidPlacement:
     Mixed into the obstacles; reads their ``motion``, ``profile`` and ``rotation``.
     """
 
-    motion: Sequence[float] | None
+    motion: Motion
     profile: Callable[[float], float]
     rotation: RigidRotation | None = None
 
     def translation(self, t: float) -> np.ndarray | float:
-        r""":math:`f(t)\,m` (0 where the obstacle does not translate)."""
+        r""":math:`f(t)\,m`, or a path's :math:`s(t)` (0 where the obstacle does not translate)."""
         if self.motion is None:
             return 0.0
+        if callable(self.motion):  # a path (e.g. Waypoints): the translation itself
+            return np.asarray(self.motion(t), dtype=float)
         return float(self.profile(t)) * np.asarray(self.motion, dtype=float)
 
     def turn(self, t: float) -> np.ndarray | None:
@@ -149,9 +160,31 @@ class RigidPlacement:
         return self.transfer(x, t_from, t) - x
 
 
+def check_motion(motion: Motion, dim: int, where: str) -> tuple[float, ...] | Callable[[float], Sequence[float]] | None:
+    """A motion (:data:`Motion`) of ``dim`` components: a float tuple, the path itself, or ``None``; one line else.
+
+    Raises:
+        ParameterError: A non-finite entry or another number of components (a path: at ``t = 0``).
+    """
+    if motion is None:
+        return None
+    if callable(motion):
+        try:
+            start = np.asarray(motion(0.0), dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(f"{where}: a motion path must give {dim} numbers at t = 0 ({exc})") from None
+        if start.shape != (dim,) or not np.all(np.isfinite(start)):
+            raise ParameterError(f"{where}: a motion path must give {dim} finite components, got {start!r} at t = 0")
+        return motion
+    m = check_finite_vector(motion, where, "motion")
+    if len(m) != dim:
+        raise ParameterError(f"{where}: motion must have {dim} components, got {len(m)}")
+    return m
+
+
 def check_plane(
-    point: Sequence[float], normal: Sequence[float], motion: Sequence[float] | None, where: str
-) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...] | None]:
+    point: Sequence[float], normal: Sequence[float], motion: Motion, where: str
+) -> tuple[tuple[float, ...], tuple[float, ...], Motion]:
     """The point, normal and motion of a plane as float tuples of one length (2 or 3); a one-line error otherwise.
 
     Raises:
@@ -160,7 +193,7 @@ def check_plane(
     """
     p = check_finite_vector(point, where, "point")
     n = check_finite_vector(normal, where, "normal")
-    m = None if motion is None else check_finite_vector(motion, where, "motion")
+    m = None if motion is None or callable(motion) else check_finite_vector(motion, where, "motion")
     for what, v in (("point", p), ("normal", n), ("motion", m)):
         if v is not None and len(v) not in (2, 3):
             raise ParameterError(f"{where}: {what} must have 2 or 3 components, got {len(v)}")
@@ -168,7 +201,7 @@ def check_plane(
             raise ParameterError(f"{where}: {what} has {len(v)} components, point has {len(p)}")
     if not float(np.linalg.norm(n)) > 0.0:
         raise ParameterError(f"{where}: normal must be a non-zero vector, got {n}")
-    return p, n, m
+    return p, n, check_motion(motion, len(p), where)
 
 
 @dataclass(frozen=True)
@@ -179,7 +212,7 @@ class HalfSpace(RigidPlacement):
     Attributes:
         point: A point :math:`p_0` of the plane at :math:`t` with ``profile(t) = 0`` and no rotation.
         normal: The outward normal (normalised by :attr:`unit_normal`), pointing to the body's side.
-        motion: The translation :math:`m` (``None``: the plane does not move).
+        motion: The translation :math:`m` (``None``: the plane does not move), or a path (:data:`Motion`).
         profile: :math:`f(t)` of the translation (default: the load factor).
         rotation: A :class:`~hyperfem.loading.RigidRotation` composed with the translation: it turns the normal,
             :math:`n(t) = R(t)\,n_0`, and the point about the pivot (module docstring; ``None``: it does not turn).
@@ -187,7 +220,7 @@ class HalfSpace(RigidPlacement):
 
     point: Sequence[float]
     normal: Sequence[float]
-    motion: Sequence[float] | None = None
+    motion: Motion = None
     profile: Callable[[float], float] = linear_profile
     rotation: RigidRotation | None = None
 
@@ -225,8 +258,8 @@ class HalfSpace(RigidPlacement):
 
 
 def check_ball(
-    center: Sequence[float], radius: float, motion: Sequence[float] | None, where: str
-) -> tuple[tuple[float, ...], float, tuple[float, ...] | None]:
+    center: Sequence[float], radius: float, motion: Motion, where: str
+) -> tuple[tuple[float, ...], float, Motion]:
     """The centre, radius and motion of a sphere (float tuples of one length, 2 or 3); a one-line error otherwise.
 
     Raises:
@@ -234,14 +267,14 @@ def check_ball(
             that differ, or a radius that is not a finite number > 0.
     """
     c = check_finite_vector(center, where, "center")
-    m = None if motion is None else check_finite_vector(motion, where, "motion")
+    m = None if motion is None or callable(motion) else check_finite_vector(motion, where, "motion")
     for what, v in (("center", c), ("motion", m)):
         if v is not None and len(v) not in (2, 3):
             raise ParameterError(f"{where}: {what} must have 2 or 3 components, got {len(v)}")
         if v is not None and len(v) != len(c):
             raise ParameterError(f"{where}: {what} has {len(v)} components, center has {len(c)}")
     check_positive("radius", radius, where)
-    return c, float(radius), m
+    return c, float(radius), check_motion(motion, len(c), where)
 
 
 @dataclass(frozen=True)
@@ -252,7 +285,7 @@ class Ball(RigidPlacement):
     Attributes:
         center: The centre :math:`c_0` at :math:`t` with ``profile(t) = 0`` and no rotation.
         radius: :math:`R > 0`.
-        motion: The translation :math:`m` (``None``: the ball does not move).
+        motion: The translation :math:`m` (``None``: the ball does not move), or a path (:data:`Motion`).
         profile: :math:`f(t)` of the translation (default: the load factor).
         rotation: A :class:`~hyperfem.loading.RigidRotation` composed with the translation (module docstring;
             ``None``: it does not turn).
@@ -260,7 +293,7 @@ class Ball(RigidPlacement):
 
     center: Sequence[float]
     radius: float
-    motion: Sequence[float] | None = None
+    motion: Motion = None
     profile: Callable[[float], float] = linear_profile
     rotation: RigidRotation | None = None
 
@@ -294,7 +327,7 @@ class Cylinder(RigidPlacement):
         point: A point of the axis at :math:`t` with ``profile(t) = 0``.
         axis: The axis direction (normalised by :attr:`unit_axis`), 3 components.
         radius: :math:`R > 0`.
-        motion: The translation :math:`m` (``None``: it stays).
+        motion: The translation :math:`m` (``None``: it stays), or a path (:data:`Motion`).
         profile: :math:`f(t)` of the translation (default: the load factor).
         rotation: A :class:`~hyperfem.loading.RigidRotation` composed with the translation: it turns the axis
             (module docstring; ``None``: it does not turn).
@@ -303,7 +336,7 @@ class Cylinder(RigidPlacement):
     point: Sequence[float]
     axis: Sequence[float]
     radius: float
-    motion: Sequence[float] | None = None
+    motion: Motion = None
     profile: Callable[[float], float] = linear_profile
     rotation: RigidRotation | None = None
 

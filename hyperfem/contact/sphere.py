@@ -47,7 +47,7 @@ from hyperfem.contact.defaults import default_dhat, default_stiffness
 from hyperfem.contact.nodal import NodalBarrier
 from hyperfem.contact.nodes import boundary_nodes
 from hyperfem.contact.settings import check_contact_settings, check_dhat_fits
-from hyperfem.contact.obstacles import Ball, check_ball, check_rotation
+from hyperfem.contact.obstacles import Ball, Motion, check_ball, check_rotation
 from hyperfem.errors import ParameterError
 from hyperfem.loading.motion import RigidRotation
 from hyperfem.loading.profiles import linear_profile
@@ -76,7 +76,8 @@ class SphereContact:
         dhat: Barrier width :math:`\hat d > 0` (``None``: :func:`~hyperfem.contact.defaults.default_dhat`).
         stiffness: Barrier stiffness :math:`\kappa > 0` (``None``: the mean tangent diagonal at the contact
             nodes, :func:`~hyperfem.contact.defaults.default_stiffness`; fixed for the run).
-        motion: A translation of the sphere, scaled by ``profile(t)`` (``None``: it stays).
+        motion: A translation of the sphere, scaled by ``profile(t)`` (``None``: it stays), or a path ``t -> s(t)``
+            (e.g. :class:`~hyperfem.loading.Waypoints`: pressed in, then dragged; ``profile`` is then unused).
         profile: :math:`f(t)` of the translation (default: the load factor).
         safety: The collision filter's :math:`s \in (0, 1)` (:data:`~hyperfem.contact.ccd.CCD_SAFETY`).
         name: Prefix of the output columns (``contact_force``, ...).
@@ -98,7 +99,7 @@ class SphereContact:
     radius: float
     dhat: float | None = None
     stiffness: float | None = None
-    motion: Sequence[float] | None = None
+    motion: Motion = None
     profile: Callable[[float], float] = linear_profile
     safety: float = CCD_SAFETY
     name: str = "contact"

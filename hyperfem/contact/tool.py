@@ -40,7 +40,7 @@ import numpy as np
 from hyperfem.contact.bodies import surface_defaults
 from hyperfem.contact.ccd import CCD_SAFETY
 from hyperfem.contact.mesh_barrier import MeshBarrier, RigidSurface
-from hyperfem.contact.obstacles import check_rotation
+from hyperfem.contact.obstacles import check_motion, check_rotation
 from hyperfem.contact.settings import check_boundaries, check_contact_settings, check_subdivision
 from hyperfem.contact.surface import contact_surface
 from hyperfem.errors import MeshError, ParameterError
@@ -154,19 +154,12 @@ class ToolContact:
         given = np.asarray(self.points) if read is None else read[0]
         dim = 2 if given.ndim == 2 and given.shape[1] == 2 else 3
         check_rotation(self.rotation, dim, where)
-        if callable(self.motion):
-            start = np.asarray(self.motion(0.0), dtype=float)
-            if start.shape != (dim,) or not np.all(np.isfinite(start)):
-                raise ParameterError(
-                    f"{where}: a motion path must give {dim} finite components, got {start!r} at t = 0"
-                )
-        for key in ("motion", "offset"):
-            value = getattr(self, key)
-            if value is not None and not callable(value):
-                vector = check_finite_vector(value, where, key)
-                if len(vector) != dim:
-                    raise ParameterError(f"{where}: {key} must have {dim} components, got {len(vector)}")
-                object.__setattr__(self, key, vector)
+        object.__setattr__(self, "motion", check_motion(self.motion, dim, where))
+        if self.offset is not None:
+            offset = check_finite_vector(self.offset, where, "offset")
+            if len(offset) != dim:
+                raise ParameterError(f"{where}: offset must have {dim} components, got {len(offset)}")
+            object.__setattr__(self, "offset", offset)
         if not (isinstance(self.scale, (int, float)) and np.isfinite(self.scale) and self.scale > 0):
             raise ParameterError(f"{where}: scale must be a number > 0, got {self.scale!r}")
         check_contact_settings(
