@@ -81,18 +81,14 @@ def parse(argv=None):
 # %% [markdown]
 # ## The probe's path
 # Down by $\delta + $ its lift over the first half of the run ($t \le 1/2$),
-# then along $x$ by $L$: a path $t \mapsto$ translation, given to
-# ``ToolContact`` as its ``motion``.
+# then along $x$ by $L$: a path $t \mapsto$ translation through waypoints
+# (piecewise linear), given to ``ToolContact`` as its ``motion``.
 
 
 # %%
-def path(depth: float, drag: float):
-    def translation(t: float) -> np.ndarray:
-        down = min(t, 0.5) / 0.5 * (depth + LIFT)
-        along = max(t - 0.5, 0.0) / 0.5 * drag
-        return np.array([along, 0.0, -down])
-
-    return translation
+def path(depth: float, drag: float) -> hf.loading.Waypoints:
+    down = -(depth + LIFT)
+    return hf.loading.Waypoints(times=(0.0, 0.5, 1.0), points=((0.0, 0.0, 0.0), (0.0, 0.0, down), (drag, 0.0, down)))
 
 
 # %% [markdown]
