@@ -243,6 +243,45 @@ def test_barrier_derivatives_through_the_proxy_match_finite_differences():
     np.testing.assert_allclose(curvature, H @ direction, rtol=0, atol=1e-6 * np.abs(H @ direction).max())
 
 
+def _mixed_blocks(mixed_threshold: int) -> tuple[float, float, float, bool, str]:
+    """The stacked blocks as the (u, p, theta) problem: force on lower_top, reaction, gap, intersecting, PC."""
+    from hyperfem.kinematics import isochoric_invariants
+    from hyperfem.problem.mixed import SplitEnergy, solid_problem
+    from hyperfem.solver.linear import choose_linear_solver
+
+    domain = hf.mesh.stacked_blocks_mesh(1.0, 0.6, GAP, comm=MPI.COMM_WORLD)
+    bcs = [
+        hf.PrescribedDisplacement("x0", [0.0], components=[0]),
+        hf.PrescribedDisplacement("y0", [0.0], components=[1]),
+        hf.PrescribedDisplacement("lower_bottom", [0.0], components=[2]),
+        hf.PrescribedDisplacement("upper_top", [-0.1], components=[2]),
+    ]
+    material = SplitEnergy(lambda F: 0.5 * PARAMS.mu * (isochoric_invariants(F)[0] - 3.0), 50.0 * PARAMS.mu)
+    problem = solid_problem(domain, material, formulation="mixed", bcs=bcs)
+    contact = SurfaceContact(["lower_top", "upper_bottom"], dhat=DHAT).bind(problem)
+    linear = choose_linear_solver(problem, mixed_threshold=mixed_threshold)
+    solver = hf.NewtonSolver(problem, TIGHT, linear_solver=linear, external_energies=[contact])
+    iterates = _watch(solver, contact)
+    hf.solve_quasistatic(solver, stepping=hf.LoadStepping(initial_increment=0.5, max_increment=0.5))
+    assert min(iterates) > 0.0
+    pc = str(solver.snes.getKSP().getPC().getType())
+    return float(contact.force(group=0)[2]), float(ReactionForce(problem, "upper_top")()[2]), \
+        contact.min_distance(), contact.intersecting(), pc
+
+
+def test_mixed_blocks_on_the_field_split_equal_lu():
+    """The (u, p, theta) blocks on the iterative field split (its preconditioning matrix is the tangent plus a
+    shift, copied): the contact pairs grow the tangent's pattern at several Newton iterations, and each time
+    the split is set up anew (before, the second growth stopped PETSc: "Cannot reuse matrix. wrong number of
+    nonzeros"). The force equals LU's and the reaction."""
+    split = _mixed_blocks(mixed_threshold=0)
+    lu = _mixed_blocks(mixed_threshold=10**12)
+    assert (split[4], lu[4]) == ("fieldsplit", "lu")
+    assert split[0] == pytest.approx(split[1], rel=1e-8) and split[0] < 0.0
+    assert split[0] == pytest.approx(lu[0], rel=1e-4)
+    assert 0.0 < split[2] < DHAT and not split[3]
+
+
 @pytest.mark.parametrize(("subdivision", "warp"), [(1, 4 * DHAT), (None, 1.2 * DHAT)])
 def test_hexahedral_blocks_transmit_the_uniaxial_stress(subdivision, warp):
     """The patch test on Q1 hexahedra (``stacked_blocks_mesh(cell="hexahedron")``: 3^3 boxes below, 2^3 above,

@@ -13,7 +13,8 @@ turns the axis: :math:`a(t) = R(t)a_0`, :mod:`~hyperfem.contact.obstacles`). Wit
 the sphere's formulas (:mod:`~hyperfem.contact.sphere`) in the plane normal to
 the axis: the barrier's Hessian block
 :math:`\kappa(b'' n n^T + b' (P - n n^T)/r)` is indefinite and the tangent
-gets its PSD projection; the collision filter is the sphere's quadratic on
+gets its PSD projection while the nodes move, the exact blocks once they
+settle, as the sphere's; the collision filter is the sphere's quadratic on
 the projected offsets and steps. Friction, outputs and MPI as for the plane
 and the sphere (:mod:`~hyperfem.contact.nodal`). The cylinder has no ends.
 
