@@ -25,6 +25,7 @@ uniform pressure) at :math:`10^{-3}`, 0.014 % at :math:`10^{-4}`.
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 
@@ -292,6 +293,44 @@ def test_three_field_problem_on_the_plane():
     reaction = ReactionForce(problem, "top")()
     assert contact.force()[2] == pytest.approx(-reaction[2], rel=1e-8) and contact.force()[2] > 0.0
     assert min(iterates) > 0.0 and contact.active_count() == 25
+
+
+MUSCLE_FORCE = -0.8908204653303  # N, the run below at activation 1 (1 rank; 2 ranks agree to 1e-15)
+
+
+def test_contracting_muscle_bulges_against_a_plane():
+    """Muscle with contact: a block of seed 000's muscle (4 x 1 x 1 cm, fibres along x, the (u, p, theta)
+    problem, K x 50) clamped at x = 0 and activated to 1 shortens and bulges sideways onto a rigid wall 0.2 mm from
+    its side: the wall's force grows with the activation, balances the clamp's reaction at every step, no node
+    reaches the wall; the end force is the trusted run's."""
+    from dolfinx import fem
+
+    from hyperfem.loading import Activation
+    from hyperfem.materials.muscle import MuscleParameters, muscle_isochoric
+    from hyperfem.problem.mixed import SplitEnergy, solid_problem
+
+    length, width = 0.04, 0.01
+    mesh = dmesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([length, width, width])], [4, 2, 2])
+    groups = {"origin": lambda x: np.isclose(x[0], 0.0), "side": lambda x: np.isclose(x[1], width)}
+    domain = hf.Domain.from_locators(mesh, groups, source="muscle block")
+    a0 = fem.Constant(mesh, np.array([1.0, 0.0, 0.0]))
+    activation = Activation(mesh, value=lambda s: min(max(s, 0.0), 1.0), name="activation")
+    params = MuscleParameters.muscle(K=MuscleParameters.muscle().K * 50)
+    material = SplitEnergy(lambda F: muscle_isochoric(F, a0, activation.expr, params), params.K)
+    problem = solid_problem(domain, material, formulation="mixed", bcs=[hf.Clamp("origin")], updaters=[activation])
+    wall = PlaneContact("side", point=(0.0, width + 2e-4, 0.0), normal=(0.0, -1.0, 0.0), dhat=1e-4).bind(problem)
+    solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-10}, external_energies=[wall])
+    iterates = _watch(solver, wall)
+    outputs = [Recorder(wall), Reaction("origin")]
+    rows = Simulation(problem, solver, hf.StepPolicy(increment=0.25), outputs).run()["rows"]
+    assert [row["time"] for row in rows] == pytest.approx([0.0, 0.25, 0.5, 0.75, 1.0], abs=1e-12)
+    assert min(iterates) > 0.0 and all(row["contact_min_distance"] > 0.0 for row in rows)
+    forces = [row["contact_force"][1] for row in rows[1:]]
+    assert forces[0] < 0.0 and all(b < a for a, b in itertools.pairwise(forces))  # grows with the activation
+    for row in rows[1:]:
+        assert row["contact_active"] > 0
+        assert row["contact_force"] == pytest.approx(-np.array(row["reaction_origin"]), rel=1e-8, abs=1e-12)
+    assert forces[-1] == pytest.approx(MUSCLE_FORCE, rel=1e-8)
 
 
 def test_moving_plane_reaches_the_fixed_plane_state():
