@@ -48,6 +48,14 @@ the FVM node force equals the FEM :math:`f_\text{int}`).
   parameters and the density given here; a larger step raises
   :class:`~hyperfem.errors.ParameterError`.
 
+**Contact** (:mod:`hyperfem.contact`) is not available here: the IPC barrier
+stiffens without bound as a gap closes, so no fixed explicit step stays
+stable, and intersection-free steps need the implicit step's collision
+filter and line search. Contact runs with the implicit integrators
+(:func:`~hyperfem.dynamics.integrate`), the semi-implicit scheme
+(:mod:`~hyperfem.dynamics.semi_implicit`, where impacts are inelastic) and
+the real-time stepper (analytic obstacles).
+
 :func:`integrate_explicit` runs the scheme as a
 :class:`~hyperfem.simulation.Simulation` with :class:`ExplicitStage`, i.e. with
 the same stepping loop (:func:`~hyperfem.solver.stepping.run_steps`), policies,

@@ -35,6 +35,13 @@ non-finite residual or an inverted element still fail the step (and
 
     Simulation(problem, semi_implicit_solver(problem), stepping, outputs, stage=SemiImplicitStage).run()
 
+Contact (``semi_implicit_solver(problem, external_energies=[contact])``):
+the collision filter shortens the one Newton step as it does any Newton
+step, so no step penetrates; but one linearization does not resolve the
+barrier, and an impact is inelastic (a block dropped on a plane comes to
+rest on it with its kinetic energy gone, where backward Euler with full
+Newton solves bounces; ``tests/test_contact.py``).
+
 Seed 003 uses "SI-FEM" for the scheme with the elastic forces explicit and a
 consistent-mass velocity solve (its §5.5: "the coefficient matrix of the
 velocity update is the mass matrix"); that scheme is
