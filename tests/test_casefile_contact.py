@@ -492,9 +492,25 @@ def test_tool_contact_case_presses_the_block_on_an_stl_plate(shared_tmp):
     summary = built.simulation.run()
     rows = summary["rows"]
     assert summary["completed"] and rows[-1]["contact_force"][2] > 0.1
+    supports = [name.removesuffix("_Fz").removeprefix("reaction_") for name in rows[-1] if name.endswith("_Fz")]
     for row in rows[1:]:
         assert row["contact_min_distance"] > 0.0
         assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8)
+        if "total" in supports:  # the tool's moment about the origin balances the supports'
+            total = np.array([row[f"reaction_total_M{c}"] for c in "xyz"])
+            assert row["contact_moment"] == pytest.approx(-total, rel=1e-8, abs=1e-10 * np.abs(total).max())
+    assert "total" in supports and np.abs(rows[-1]["contact_moment"]).max() > 0.01
+    if MPI.COMM_WORLD.rank == 0:  # the CSV (rank 0 writes it) has the contact's columns, lists spread
+        import csv
+
+        (path,) = (shared_tmp / "tool").glob("*.csv")
+        table = list(csv.DictReader(path.open()))
+        assert len(table) == len(rows)
+        for column in ("contact_force_2", "contact_moment_0", "contact_moment_2", "contact_active",
+                       "contact_min_distance"):
+            assert column in table[-1]
+        assert float(table[-1]["contact_force_2"]) == pytest.approx(rows[-1]["contact_force"][2], rel=1e-12)
+        assert float(table[-1]["contact_moment_1"]) == pytest.approx(rows[-1]["contact_moment"][1], rel=1e-12)
 
 
 def test_surface_contact_keys_reach_the_script(shared_tmp):

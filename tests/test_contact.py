@@ -42,7 +42,7 @@ from hyperfem.errors import ParameterError, UnknownGroupError  # noqa: E402
 from hyperfem.loading import Ramp  # noqa: E402
 from hyperfem.simulation import Recorder, Simulation  # noqa: E402
 from hyperfem.simulation.measures import Reaction  # noqa: E402
-from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
+from hyperfem.simulation.reactions import ReactionForce, Reactions  # noqa: E402
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
 DHAT = 1e-3
@@ -302,7 +302,8 @@ def test_contracting_muscle_bulges_against_a_plane():
     """Muscle with contact: a block of seed 000's muscle (4 x 1 x 1 cm, fibres along x, the (u, p, theta)
     problem, K x 50) clamped at x = 0 and activated to 1 shortens and bulges sideways onto a rigid wall 0.2 mm from
     its side: the wall's force grows with the activation, balances the clamp's reaction at every step, no node
-    reaches the wall; the end force is the trusted run's."""
+    reaches the wall, and the wall's moment (a per-step column) balances the clamp's; the end force is the trusted
+    run's."""
     from dolfinx import fem
 
     from hyperfem.loading import Activation
@@ -321,7 +322,7 @@ def test_contracting_muscle_bulges_against_a_plane():
     wall = PlaneContact("side", point=(0.0, width + 2e-4, 0.0), normal=(0.0, -1.0, 0.0), dhat=1e-4).bind(problem)
     solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-10}, external_energies=[wall])
     iterates = _watch(solver, wall)
-    outputs = [Recorder(wall), Reaction("origin")]
+    outputs = [Recorder(wall), Reaction("origin"), Reactions()]
     rows = Simulation(problem, solver, hf.StepPolicy(increment=0.25), outputs).run()["rows"]
     assert [row["time"] for row in rows] == pytest.approx([0.0, 0.25, 0.5, 0.75, 1.0], abs=1e-12)
     assert min(iterates) > 0.0 and all(row["contact_min_distance"] > 0.0 for row in rows)
@@ -330,6 +331,9 @@ def test_contracting_muscle_bulges_against_a_plane():
     for row in rows[1:]:
         assert row["contact_active"] > 0
         assert row["contact_force"] == pytest.approx(-np.array(row["reaction_origin"]), rel=1e-8, abs=1e-12)
+        clamp = [row[f"reaction_total_M{c}"] for c in "xyz"]  # about the origin, as the wall's moment
+        assert row["contact_moment"] == pytest.approx(-np.array(clamp), rel=1e-8, abs=1e-14)
+        assert abs(row["contact_moment"][2]) > 0.05 * length * abs(row["contact_force"][1])  # an arm along x
     assert forces[-1] == pytest.approx(MUSCLE_FORCE, rel=1e-8)
 
 

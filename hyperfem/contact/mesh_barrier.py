@@ -765,12 +765,14 @@ class MeshBarrier:
         return bool(self.ipctk.has_intersections(self.mesh, _f(self.vertices(self._state(u))), self.ipctk.HashGrid()))
 
     def record(self, step: object = None) -> dict[str, object]:
-        """The output columns: ``<name>_force`` (on the first boundary, or on the body from a tool), ``_active``,
-        ``_min_distance``; with friction ``_friction_force`` (on the same nodes)."""
+        """The output columns: ``<name>_force`` (on the first boundary, or on the body from a tool), ``_moment`` (of
+        the same forces about the origin, friction included: :meth:`moment`), ``_active``, ``_min_distance``; with
+        friction ``_friction_force`` (on the same nodes)."""
         name = self.contact.name
         group = None if self.tool is not None else 0
         out: dict[str, object] = {
             f"{name}_force": [float(v) for v in self.force(group=group)],
+            f"{name}_moment": [float(v) for v in self.moment(group=group)],
             f"{name}_active": self.active_count(),
             f"{name}_min_distance": self.min_distance(),
         }

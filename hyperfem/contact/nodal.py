@@ -442,13 +442,15 @@ class NodalBarrier:
         return float(self.comm.allreduce(float(d.min()) if len(d) else float("inf"), op=MPI.MIN))
 
     def record(self, step: object = None) -> dict[str, object]:
-        """The output columns at the current state: ``<name>_force``, ``<name>_active``, ``<name>_min_distance``.
+        """The output columns at the current state: ``<name>_force``, ``<name>_moment`` (about the origin, friction
+        included: :meth:`moment`), ``<name>_active``, ``<name>_min_distance``.
 
         With friction also ``<name>_friction_force`` (:meth:`friction_force`; ``<name>_force`` is the normal part).
         """
         name = self.contact.name
         out: dict[str, object] = {
             f"{name}_force": [float(v) for v in self.force()],
+            f"{name}_moment": [float(v) for v in self.moment()],
             f"{name}_active": self.active_count(),
             f"{name}_min_distance": self.min_distance(),
         }
