@@ -451,6 +451,10 @@ def test_unsupported_input_is_refused_in_one_line():
     touching = PLATE + np.array([0.0, DHAT / 2])
     with pytest.raises(ParameterError, match=r"start in contact|intersect at"):
         ToolContact.from_arrays(["bottom"], touching, PLATE_SEGMENTS, dhat=DHAT).bind(problem)
+    through = np.array([[0.45, -1.0], [0.45, 0.5], [0.45, 2.0]])  # a vertical polyline through bottom and top
+    with pytest.raises(ParameterError, match=r"intersect at the start \(.*\): the segment from \(.*\) to \(.*\) "
+                       r"crosses the one from \("):
+        ToolContact.from_arrays(["bottom", "top"], through, PLATE_SEGMENTS, dhat=DHAT).bind(problem)
 
 
 # -- the case file --------------------------------------------------------------------------------------------------

@@ -440,9 +440,11 @@ BCS = {
 _CONTACT_COMMON = {
     "type": Key("string", required=True, choices=CONTACT_TYPES, example="plane",
                 help="plane: a rigid half-space (hyperfem.contact.PlaneContact); sphere: a rigid ball, an indenter "
-                "or spherical tool (hyperfem.contact.SphereContact); self: self-contact of surfaces and pair: two "
-                "bodies of one mesh (hyperfem.contact.SurfaceContact); tool: a rigid triangulated tool read from a "
-                "file (hyperfem.contact.ToolContact)"),
+                "or spherical tool (hyperfem.contact.SphereContact); cylinder: a rigid roller or rod "
+                "(hyperfem.contact.CylinderContact); self: self-contact of surfaces and pair: two bodies of one mesh "
+                "(hyperfem.contact.SurfaceContact); tool: a rigid triangulated tool read from a file "
+                "(hyperfem.contact.ToolContact); tie: two surface groups glued, non-matching meshes allowed "
+                "(hyperfem.contact.TieContact)"),
 }
 _NODE_BOUNDARY = Key("string", required=True, example="bottom",
                      help="facet group of the mesh whose nodes may touch the obstacle")

@@ -664,7 +664,40 @@ class MeshBarrier:
                 f"{tuple(float(f'{v:.6g}') for v in V[k])} is at distance {distance:.3g} from another primitive"
             )
         if self.ipctk.has_intersections(self.mesh, _f(V), self.ipctk.HashGrid()):
-            raise ParameterError(f"{self.where}: the surfaces intersect at the start (a body starts inside the other)")
+            raise ParameterError(
+                f"{self.where}: the surfaces intersect at the start (a body starts inside the other){self._crossing(V)}"
+            )
+
+    def _crossing(self, V: np.ndarray) -> str:
+        """Where the surfaces cross at the vertices ``V``: ``": the edge from A to B crosses the triangle at C"`` for
+        the first crossing edge (by index; 2D: segment), or ``""`` where none is found."""
+        ipctk, mesh = self.ipctk, self.mesh
+        grid = ipctk.HashGrid()
+        grid.build(_f(V), mesh.edges, mesh.faces, 0.0)
+
+        def at(points: np.ndarray) -> tuple[float, ...]:
+            return tuple(float(f"{v:.6g}") for v in points)
+
+        if self.dim == 3:
+            pairs = sorted((c.edge_id, c.face_id) for c in grid.detect_edge_face_candidates())
+            for e, f in pairs:
+                edge, face = mesh.edges[e], mesh.faces[f]
+                if set(edge) & set(face):
+                    continue
+                if ipctk.is_edge_intersecting_triangle(*(V[i][:, None] for i in (*edge, *face))):
+                    return (f": the edge from {at(V[edge[0]])} to {at(V[edge[1]])} crosses the triangle at "
+                            f"{at(V[face].mean(axis=0))}")
+            return ""
+        pairs = sorted((min(c.edge0_id, c.edge1_id), max(c.edge0_id, c.edge1_id))
+                       for c in grid.detect_edge_edge_candidates())
+        for a, b in pairs:
+            first, second = mesh.edges[a], mesh.edges[b]
+            if set(first) & set(second):
+                continue
+            if ipctk.segment_segment_intersect(*(V[i][:, None] for i in (*first, *second))):
+                return (f": the segment from {at(V[first[0]])} to {at(V[first[1]])} crosses the one from "
+                        f"{at(V[second[0]])} to {at(V[second[1]])}")
+        return ""
 
     def _closest_vertex(self, V: np.ndarray, collisions: Any) -> int:
         """A vertex of the closest pair."""
