@@ -474,6 +474,29 @@ def test_pair_contact_case_transmits_the_force_between_two_blocks(shared_tmp):
     assert rows[-1]["contact_force"][2] == pytest.approx(-0.10866, rel=1e-3)
 
 
+def test_self_contact_case_runs_and_equals_the_pair(shared_tmp):
+    """``type = "self"`` over both faces of the gap (one surface whose pairs may be any two of its primitives): the
+    case runs end to end and gives the pair's force (the blocks' own faces are flat, so no other pair is active)
+    to 1e-8, balanced by the reaction at every step."""
+    folder = shared_tmp / "self"
+    if MPI.COMM_WORLD.rank == 0:
+        folder.mkdir(exist_ok=True)
+    MPI.COMM_WORLD.Barrier()
+    runs = {}
+    for kind in ("pair", "self"):
+        case = load_case(_write_pair(folder, PAIR.replace('type = "pair"', f'type = "{kind}"')),
+                         output=folder / kind)
+        assert case.contacts[0].type == kind
+        compile(script(case), f"{kind}.py", "exec")
+        summary = build(case).simulation.run()
+        assert summary["completed"]
+        runs[kind] = summary["rows"]
+    for pair, self_ in zip(runs["pair"][1:], runs["self"][1:], strict=True):
+        assert self_["contact_min_distance"] > 0.0
+        assert self_["contact_force"][2] == pytest.approx(self_["reaction_upper_top_Fz"], rel=1e-8)
+        assert self_["contact_force"] == pytest.approx(pair["contact_force"], rel=1e-8, abs=1e-12)
+
+
 def test_tool_contact_case_presses_the_block_on_an_stl_plate(shared_tmp):
     """``type = "tool"``: ToolContact of a binary STL plate (file relative to the case file); the tool's force on
     the block = -(reaction at the top) to 1e-8 at every step; the script reads the file beside the case."""
