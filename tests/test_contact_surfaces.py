@@ -563,6 +563,23 @@ def test_tool_friction_sticks_below_mu_n():
     assert tool.record()["tool_friction_force"] == pytest.approx(list(friction), abs=1e-14)
 
 
+def _rough_state(comm) -> list[float]:
+    problem, tool, T, slip = _on_rough_tool(comm, "traction", 0.5)
+    return [*map(float, tool.force()), *map(float, tool.friction_force()), T, slip,
+            float(problem.u.x.petsc_vec.norm())]
+
+
+def test_tool_friction_one_rank_equals_two_ranks():
+    """The cube on the rough tool pushed by half mu N: forces, friction, slip and displacement norm on 2 ranks equal
+    1 rank's to 1e-10."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    one = _rough_state(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    assert _rough_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-13)
+
+
 @pytest.mark.serial  # the friction's 2-rank path: the stick test above runs on 2 ranks too
 def test_tool_friction_slides_at_mu_n():
     """The top dragged 0.2 along x: the bottom slides (>> epsilon) and the friction force is mu N to 0.5 %."""
@@ -589,15 +606,11 @@ def test_tool_friction_through_the_collision_proxy():
 # -- dynamics ---------------------------------------------------------------------------------------------------------
 
 
-def test_block_dropped_fast_on_a_tool_plate_never_passes_through():
-    """A free cube moving down at 5 m/s onto a triangulated plate 0.02 below it, backward Euler, dt = 0.05: the
-    first guess puts the bottom 0.23 below the plate, on its far side at a positive distance; the sweep check pulls
-    it back. No iterate or step penetrates or intersects, the total energy (kinetic + elastic + barrier) never
-    grows, and the block bounces."""
+def _dropped_fast(comm):
+    """The free cube moving down at 5 m/s onto the plate 0.02 below it (backward Euler, dt = 0.05, to t = 0.4)."""
     from hyperfem import dynamics as dyn
     from hyperfem.simulation import Recorder, Simulation
 
-    comm = MPI.COMM_WORLD
     base = hf.HyperelasticProblem(_cube(comm, 2), lambda F: hf.materials.neo_hookean(F, PARAMS))
     problem = dyn.IncrementalProblem(base, dyn.BackwardEuler(), dyn.MassDensity(1.0))
     problem.v.interpolate(lambda x: np.vstack([0.0 * x[0], 0.0 * x[0], np.full(x.shape[1], -5.0)]))
@@ -614,6 +627,16 @@ def test_block_dropped_fast_on_a_tool_plate_never_passes_through():
 
     outputs = [Recorder(tool), Recorder(dyn.Diagnostics(problem)), Recorder(Checks())]
     summary = Simulation(problem, solver, dyn.TimeStepping(dt=0.05, t_end=0.4), outputs).run()
+    return problem, summary, iterates
+
+
+def test_block_dropped_fast_on_a_tool_plate_never_passes_through():
+    """A free cube moving down at 5 m/s onto a triangulated plate 0.02 below it, backward Euler, dt = 0.05: the
+    first guess puts the bottom 0.23 below the plate, on its far side at a positive distance; the sweep check pulls
+    it back. No iterate or step penetrates or intersects, the total energy (kinetic + elastic + barrier) never
+    grows, and the block bounces."""
+    comm = MPI.COMM_WORLD
+    problem, summary, iterates = _dropped_fast(comm)
     rows = summary["rows"]
     assert summary["completed"] and min(iterates) > 0.0 and not any(row["intersecting"] for row in rows)
     assert all(row["tool_min_distance"] > 0.0 for row in rows) and max(row["tool_force"][2] for row in rows) > 10.0
@@ -621,6 +644,24 @@ def test_block_dropped_fast_on_a_tool_plate_never_passes_through():
     assert all(b <= a * (1 + 1e-9) for a, b in zip(total, total[1:], strict=False))
     velocity = problem.v.x.array.reshape(-1, 3)[:, 2]
     assert comm.allreduce(float(velocity.mean()) if len(velocity) else 0.0, op=MPI.SUM) > 0.0  # moving up again
+
+
+def _dropped_fast_state(comm) -> list[float]:
+    problem, summary, _ = _dropped_fast(comm)
+    rows = summary["rows"]
+    return [*(row["tool_force"][2] for row in rows), *(row["tool_min_distance"] for row in rows),
+            float(problem.u.x.petsc_vec.norm()), float(problem.v.x.petsc_vec.norm())]
+
+
+def test_fast_drop_one_rank_equals_two_ranks():
+    """The fast drop on the tool plate: every step's force and smallest gap and the end displacement and velocity
+    on 2 ranks equal 1 rank's to 1e-10."""
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
+    one = _dropped_fast_state(MPI.COMM_SELF) if comm.rank == 0 else None
+    one = comm.bcast(one, root=0)
+    assert _dropped_fast_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-13)
 
 
 # -- checkpoint and restart ----------------------------------------------------------------------------------------
