@@ -381,6 +381,11 @@ def test_bad_tool_input_is_one_line(tmp_path):
     meshio.write_points_cells(dots, PLATE, [("vertex", np.array([[0], [1]]))])
     with pytest.raises(MeshError, match=r"has no triangles \(a 3D tool\) or line segments \(a 2D polyline\)"):
         ToolContact(["bottom"], file=dots)
+    garbled = tmp_path / "garbled.stl"
+    garbled.write_bytes(b"solid tool\n  facet normal 0 0 1\n    outer loop\n      vertex 0 0\n")
+    with pytest.raises(MeshError, match=r"^ToolContact on \['bottom'\]: cannot read the tool surface .*garbled.stl") as info:
+        ToolContact(["bottom"], file=garbled)
+    assert "\n" not in str(info.value)
     with pytest.raises(ParameterError, match="dhat must be"):
         ToolContact.from_arrays(["bottom"], PLATE, PLATE_TRIANGLES, dhat=-1.0)
     with pytest.raises(ParameterError, match="either file or points"):
