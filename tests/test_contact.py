@@ -43,6 +43,7 @@ from hyperfem.loading import Ramp  # noqa: E402
 from hyperfem.simulation import Recorder, Simulation  # noqa: E402
 from hyperfem.simulation.measures import Reaction  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce, Reactions  # noqa: E402
+from ranks import serial_reference  # noqa: E402  (tests/ranks.py)
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
 DHAT = 1e-3
@@ -270,10 +271,7 @@ def _force_and_norm(comm) -> tuple[float, float]:
 def test_one_rank_equals_two_ranks():
     """Contact force and displacement norm on 2 ranks equal those of 1 rank to 1e-10."""
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _force_and_norm(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_force_and_norm)
     two = _force_and_norm(comm)
     assert two == pytest.approx(one, rel=1e-10)
 
@@ -459,10 +457,7 @@ def _dropped_state(comm) -> list[float]:
 def test_dynamic_drop_one_rank_equals_two_ranks():
     """The dropped block: force, displacement norm and every step's min distance on 2 ranks equal 1 rank's to 1e-10."""
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _dropped_state(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_dropped_state)
     assert _dropped_state(comm) == pytest.approx(one, rel=1e-10)
 
 
@@ -694,10 +689,7 @@ def _indentation_state(comm) -> list[float]:
 def test_sphere_one_rank_equals_two_ranks():
     """A small indentation: force, displacement norm and min distance on 2 ranks equal 1 rank's to 1e-10."""
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _indentation_state(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_indentation_state)
     assert _indentation_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-14)
 
 
@@ -958,10 +950,7 @@ def _stick_state(comm) -> list[float]:
 def test_friction_one_rank_equals_two_ranks():
     """The stick case on 2 ranks equals 1 rank to 1e-10 (friction force, normal force, displacement norm)."""
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _stick_state(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_stick_state)
     two = _stick_state(comm)
     assert two == pytest.approx(one, rel=1e-10, abs=1e-14)
 

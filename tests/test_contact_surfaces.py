@@ -27,6 +27,7 @@ from hyperfem.contact.shapes import icosphere  # noqa: E402
 from hyperfem.contact.surface import contact_surface  # noqa: E402
 from hyperfem.errors import MeshError, ParameterError, UnknownGroupError  # noqa: E402
 from hyperfem.simulation.reactions import ReactionForce  # noqa: E402
+from ranks import serial_reference  # noqa: E402  (tests/ranks.py)
 from test_contact import _cube  # noqa: E402  (the cube with bottom, top, x0, y0)
 
 PARAMS = hf.materials.LameParameters.from_youngs(E=1.0, nu=0.3)
@@ -102,10 +103,7 @@ def test_two_blocks_one_rank_equals_two_ranks():
     the tie, the plane, the sphere and the cylinder (1e-10, their tests).
     """
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _stacked_state(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_stacked_state)
     two = _stacked_state(comm)
     assert two[0] == pytest.approx(one[0], rel=1e-4) and 0.0 < two[2] < DHAT and 0.0 < one[2] < DHAT
 
@@ -579,10 +577,7 @@ def test_tool_friction_one_rank_equals_two_ranks():
     """The cube on the rough tool pushed by half mu N: forces, friction, slip and displacement norm on 2 ranks equal
     1 rank's to 1e-10."""
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _rough_state(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_rough_state)
     assert _rough_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-13)
 
 
@@ -663,10 +658,7 @@ def test_fast_drop_one_rank_equals_two_ranks():
     """The fast drop on the tool plate: every step's force and smallest gap and the end displacement and velocity
     on 2 ranks equal 1 rank's to 1e-10."""
     comm = MPI.COMM_WORLD
-    if comm.size < 2:
-        pytest.skip("compares a 1-rank run with the run on the ranks of mpiexec -n 2")
-    one = _dropped_fast_state(MPI.COMM_SELF) if comm.rank == 0 else None
-    one = comm.bcast(one, root=0)
+    one = serial_reference(_dropped_fast_state)
     assert _dropped_fast_state(comm) == pytest.approx(one, rel=1e-10, abs=1e-13)
 
 
