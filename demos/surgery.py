@@ -136,8 +136,8 @@ def surgery(comm, n: int, depth: float, drag: float, steps: int, dhat: float, fr
         "force": force.tolist(),
         "balance": balance,
         "min_distance": min(row["tool_min_distance"] for row in rows),
-        # The collision filter sees every Newton iterate (but each solve's last, which the steps' rows are).
-        "min_iterate_distance": min(tool.step_filter.min_distance, *(row["tool_min_distance"] for row in rows)),
+        # The collision filter sees every Newton iterate but each solve's last (the step's own, in the rows).
+        "min_iterate_distance": tool.step_filter.min_distance,
         "intersecting": any(row["intersecting"] for row in rows),
         "surface_nodes": tool.surface.size,
         "probe_triangles": len(triangles),

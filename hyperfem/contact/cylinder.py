@@ -48,7 +48,7 @@ class CylinderContact:
 
     Attributes:
         boundary: The boundary group whose nodes may touch the cylinder.
-        point: A point of the axis (at ``profile(t) = 0``).
+        point: A point of the axis (where the translation is 0).
         axis: The axis direction (3 components, any length > 0).
         radius: :math:`R > 0`.
         dhat: Barrier width :math:`\hat d > 0` (``None``: :func:`~hyperfem.contact.defaults.default_dhat`).

@@ -120,7 +120,7 @@ class RigidSurface:
     (:mod:`~hyperfem.contact.obstacles`).
 
     Args:
-        points: Vertex positions at ``profile(t) = 0``, shape ``(k, 3)`` (3D) or ``(k, 2)`` (2D).
+        points: Vertex positions where the translation is 0, shape ``(k, 3)`` (3D) or ``(k, 2)`` (2D).
         faces: Triangles, shape ``(f, 3)`` (3D), or segments, shape ``(f, 2)`` (2D), indices into ``points``.
         motion: The translation :math:`m` (``None``: it stays), or a path: a
             callable giving the translation at ``t`` (then ``profile`` is not used).

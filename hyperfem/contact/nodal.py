@@ -359,6 +359,8 @@ class NodalBarrier:
         if obstacle is None or not len(self.nodes.dofs):
             return self.nodes.dofs[:0], np.zeros((0, self.nodes.X.shape[1]))
         shift = obstacle.increments(self.nodes.positions(anchor), obstacle_time(self.problem, t_from), self.time)
+        if not np.any(shift):  # a static obstacle carries nothing (its nodes are not pinned at the anchor)
+            return self.nodes.dofs[:0], np.zeros((0, self.nodes.X.shape[1]))
         rigid = np.array(anchor, copy=True)
         rigid[self.nodes.dofs] += shift
         rows = np.flatnonzero(self.distances(u) < (1.0 - self.contact.safety) * self.distances(rigid))

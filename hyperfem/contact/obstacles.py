@@ -4,14 +4,16 @@ The obstacle :math:`\{x : (x - p(t))\cdot n < 0\}` with the unit outward
 normal :math:`n` and the point
 
 .. math::
-    p(t) = p_0 + f(t)\,m,
+    p(t) = p_0 + s(t), \qquad s(t) = f(t)\,m,
 
 :math:`m` the translation (``motion``) and :math:`f` its profile in load factor
 or time (:mod:`hyperfem.loading.profiles`, as for the values of a
-:class:`~hyperfem.problem.PrescribedDisplacement`). The signed distance of a
+:class:`~hyperfem.problem.PrescribedDisplacement`), or a path ``motion``
+:math:`s(t)` itself (e.g. :class:`~hyperfem.loading.Waypoints`: pressed in,
+then dragged; :data:`Motion`). The signed distance of a
 point :math:`x` from the plane is :math:`d(x) = (x - p(t))\cdot n`: positive
 on the body's side. A :class:`Ball` of radius :math:`R` centred at
-:math:`c(t) = c_0 + f(t)\,m` gives :math:`d(x) = |x - c(t)| - R`, positive
+:math:`c(t) = c_0 + s(t)` gives :math:`d(x) = |x - c(t)| - R`, positive
 outside; an infinite :class:`Cylinder` of radius :math:`R` about the axis
 through :math:`c(t)` along the unit :math:`a` gives
 :math:`d(x) = |P(x - c(t))| - R`, :math:`P = I - a a^T`. Triangulated tools
@@ -25,11 +27,9 @@ rotation first, about the pivot in the obstacle's reference placement, which
 then travels with the translation:
 
 .. math::
-    x(t) = R\bigl(\theta(t)\,\hat a_r\bigr)(X - c_r) + c_r + f(t)\,m,
+    x(t) = R\bigl(\theta(t)\,\hat a_r\bigr)(X - c_r) + c_r + s(t),
 
-(or, with a path ``motion`` such as :class:`~hyperfem.loading.Waypoints`, :math:`s(t)` in place of
-:math:`f(t)\,m`: a probe pressed in, then dragged), so the cylinder's axis point is
-:math:`c(t) = R(c_0 - c_r) + c_r + f(t)m`
+so the cylinder's axis point is :math:`c(t) = R(c_0 - c_r) + c_r + s(t)`
 and its axis :math:`a(t) = R a_0`, a plane's point :math:`p(t)` likewise and its
 normal :math:`n(t) = R n_0`. A ball turned about its own centre does
 not change its shape; its surface moves all the same, which matters with
@@ -112,7 +112,7 @@ def check_rotation(rotation: object, dim: int, where: str) -> RigidRotation | No
 
 
 class RigidPlacement:
-    r"""The rigid motion of an obstacle, :math:`x(t) = R(t)(X - c_r) + c_r + f(t)\,m` (module docstring).
+    r"""The rigid motion of an obstacle, :math:`x(t) = R(t)(X - c_r) + c_r + s(t)` (module docstring).
 
     Mixed into the obstacles; reads their ``motion``, ``profile`` and ``rotation``.
     """
@@ -171,10 +171,12 @@ def check_motion(motion: Motion, dim: int, where: str) -> tuple[float, ...] | Ca
     if callable(motion):
         try:
             start = np.asarray(motion(0.0), dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"{where}: a motion path must give {dim} numbers at t = 0 ({exc})") from None
+        except Exception as exc:  # a user's callable: whatever it raises, one line
+            why = " ".join(f"{type(exc).__name__}: {exc}".split())
+            raise ParameterError(f"{where}: a motion path must give {dim} numbers at t = 0 ({why})") from None
         if start.shape != (dim,) or not np.all(np.isfinite(start)):
-            raise ParameterError(f"{where}: a motion path must give {dim} finite components, got {start!r} at t = 0")
+            raise ParameterError(f"{where}: a motion path must give {dim} finite components, got "
+                                 f"{start.ravel().tolist()} (shape {start.shape}) at t = 0")
         return motion
     m = check_finite_vector(motion, where, "motion")
     if len(m) != dim:
@@ -210,7 +212,7 @@ class HalfSpace(RigidPlacement):
     ``profile(t)·motion``.
 
     Attributes:
-        point: A point :math:`p_0` of the plane at :math:`t` with ``profile(t) = 0`` and no rotation.
+        point: A point :math:`p_0` of the plane where the translation is 0 and with no rotation.
         normal: The outward normal (normalised by :attr:`unit_normal`), pointing to the body's side.
         motion: The translation :math:`m` (``None``: the plane does not move), or a path (:data:`Motion`).
         profile: :math:`f(t)` of the translation (default: the load factor).
@@ -249,7 +251,7 @@ class HalfSpace(RigidPlacement):
         return self.unit_normal if R is None else R @ self.unit_normal
 
     def origin(self, t: float) -> np.ndarray:
-        """The point :math:`p(t) = R(t)(p_0 - c_r) + c_r + f(t)\\,m` of the plane at time (load factor) ``t``."""
+        """The point :math:`p(t) = R(t)(p_0 - c_r) + c_r + s(t)` of the plane at time (load factor) ``t``."""
         return self.place(self.point, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
@@ -283,7 +285,7 @@ class Ball(RigidPlacement):
     ``profile(t)·motion``.
 
     Attributes:
-        center: The centre :math:`c_0` at :math:`t` with ``profile(t) = 0`` and no rotation.
+        center: The centre :math:`c_0` where the translation is 0 and with no rotation.
         radius: :math:`R > 0`.
         motion: The translation :math:`m` (``None``: the ball does not move), or a path (:data:`Motion`).
         profile: :math:`f(t)` of the translation (default: the load factor).
@@ -311,7 +313,7 @@ class Ball(RigidPlacement):
         return len(self.center)
 
     def origin(self, t: float) -> np.ndarray:
-        """The centre :math:`c(t) = R(t)(c_0 - c_r) + c_r + f(t)\\,m` at time (load factor) ``t``."""
+        """The centre :math:`c(t) = R(t)(c_0 - c_r) + c_r + s(t)` at time (load factor) ``t``."""
         return self.place(self.center, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:
@@ -324,7 +326,7 @@ class Cylinder(RigidPlacement):
     r"""A rigid infinite cylinder (a roller, a rod) of radius ``radius`` about the axis through ``point``.
 
     Attributes:
-        point: A point of the axis at :math:`t` with ``profile(t) = 0``.
+        point: A point of the axis where the translation is 0.
         axis: The axis direction (normalised by :attr:`unit_axis`), 3 components.
         radius: :math:`R > 0`.
         motion: The translation :math:`m` (``None``: it stays), or a path (:data:`Motion`).
@@ -382,7 +384,7 @@ class Cylinder(RigidPlacement):
         return np.eye(3) - np.outer(a, a)
 
     def origin(self, t: float) -> np.ndarray:
-        """The axis point :math:`c(t) = R(t)(c_0 - c_r) + c_r + f(t)\\,m` at time (load factor) ``t``."""
+        """The axis point :math:`c(t) = R(t)(c_0 - c_r) + c_r + s(t)` at time (load factor) ``t``."""
         return self.place(self.point, t)
 
     def signed_distance(self, x: np.ndarray, t: float) -> np.ndarray:

@@ -65,7 +65,7 @@ class PlaneContact:
 
     Attributes:
         boundary: The boundary group whose nodes may touch the plane.
-        point: A point of the plane (at ``profile(t) = 0``).
+        point: A point of the plane (where the translation is 0).
         normal: The plane's outward normal, pointing to the body's side.
         dhat: Barrier width :math:`\hat d > 0` (``None``: :func:`~hyperfem.contact.defaults.default_dhat`).
         stiffness: Barrier stiffness :math:`\kappa > 0` (``None``:

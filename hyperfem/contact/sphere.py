@@ -75,7 +75,7 @@ class SphereContact:
 
     Attributes:
         boundary: The boundary group whose nodes may touch the sphere.
-        center: The sphere's centre (at ``profile(t) = 0``).
+        center: The sphere's centre (where the translation is 0).
         radius: Its radius :math:`R > 0`.
         dhat: Barrier width :math:`\hat d > 0` (``None``: :func:`~hyperfem.contact.defaults.default_dhat`).
         stiffness: Barrier stiffness :math:`\kappa > 0` (``None``: the mean tangent diagonal at the contact

@@ -3,8 +3,8 @@ r"""A rigid triangulated tool (a surgical instrument, an indenter, a jaw) read f
 :class:`ToolContact` names the boundary groups of the body that the tool may
 touch and the tool's surface: triangles read from an STL, OBJ, PLY, VTK/VTU
 or gmsh file (meshio; every triangle block of the file), or given as arrays
-(:meth:`ToolContact.from_arrays`), translated by ``profile(t)·motion`` (as
-for the plane and the sphere) and optionally turned by a ``rotation``
+(:meth:`ToolContact.from_arrays`), translated by ``profile(t)·motion`` or along
+a path ``motion(t)`` (as the plane, the sphere and the cylinder) and optionally turned by a ``rotation``
 (a :class:`~hyperfem.loading.RigidRotation` about a pivot, composed with the
 translation). :meth:`~ToolContact.bind` gives a
 :class:`~hyperfem.contact.mesh_barrier.MeshBarrier` whose collision mesh is

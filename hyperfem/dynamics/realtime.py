@@ -654,6 +654,9 @@ class RealtimeStepper:
     def _assemble_tangent(self) -> None:
         self._matrices.assemble()
         if self._contact is not None:
+            # Projected (PSD) blocks: the stepper has no descent check or line search to fall back on where a
+            # curved obstacle's exact block would make the tangent indefinite (hyperfem.contact.nodal).
+            self._contact.project_tangents()
             self._contact.add_tangent(self.A)  # node blocks: inside the fixed pattern
 
     def _assemble_residual(self) -> float:

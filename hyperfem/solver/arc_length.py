@@ -107,7 +107,8 @@ is kept.
 
 **Contact** (external energies, :mod:`hyperfem.contact`) enters as in a
 Newton solve: its gradient in the residual (so in the merit and the load
-vector), its PSD Hessian in the tangent, its collision-free step filter
+vector), its PSD Hessian in the tangent (a sphere's or cylinder's blocks
+projected at every tangent here, ``project_tangents``), its collision-free step filter
 (CCD) among the step filters, so no accepted iterate interpenetrates;
 friction is lagged per accepted step. The obstacles must hold still: the
 load factor goes up and down, and a moving obstacle would sweep into the
@@ -470,6 +471,8 @@ class _Continuation:
 
     def tangent(self, lam: float) -> None:
         self.problem.set_time(lam)
+        if self.solver.external:  # PSD contact blocks: the bordered solve has no descent fallback, the inertia is
+            self.solver.external.project_tangents()  # counted on these tangents (hyperfem.contact.nodal)
         self.snes.computeJacobian(self.x, self.A, self.P)
         self.ksp.setOperators(self.A, self.P)
 

@@ -80,7 +80,9 @@ class ExternalEnergy(Protocol):
         """``(dofs, values)``, both of shape ``(m, k)``: the gradient entries of ``m`` groups of ``k`` dofs."""
 
     def hessian(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(dofs, blocks)`` of shapes ``(m, k)`` and ``(m, k, k)``: symmetric positive semi-definite blocks."""
+        """``(dofs, blocks)`` of shapes ``(m, k)`` and ``(m, k, k)``: symmetric blocks, positive semi-definite
+        unless the energy says otherwise (``exact_tangent``: a curved obstacle's exact blocks,
+        :mod:`hyperfem.contact.nodal`)."""
 
     def admissible(self, u: np.ndarray) -> str:
         """An empty string where the state is admissible on this rank, else why not (one line)."""

@@ -796,20 +796,9 @@ class NewtonSolver:
             carried = self.external.carry()
         admissible = carried is not None or not (self.external and self.external.refusal())
         moved = carried is not None or self._boundary_predictor.moved()
-        predicted = False
         if carried is not None and self.external and self.external.carries_more():
-            for _ in range(CARRY_ROUNDS):
-                # Where the lift pushes a node that was clear of the obstacle into it, carry that one too.
-                if self._predict(carried, halve=False):
-                    predicted = True
-                    break
-                more = self.external.carry_more(carried) if self.external.refusal() else None
-                if more is None:
-                    break
-                carried = more
-            if not predicted:  # the lift as far as it is admissible (halved), from the anchor
-                self.external.back_to_anchor()
-        if not predicted:
+            predicted = self._carry(carried)
+        else:
             predicted = admissible and self.predictor and moved and self._predict(carried)
         self._apply_dirichlet()
         refusal = self._start_refusal()
@@ -869,6 +858,27 @@ class NewtonSolver:
         self.step_filters.min_step_fraction = 1.0
         self.external.update(self.problem.time)
         return self.inversion_cutbacks, self.roundoff_accepts, self.filtered_steps, pc_setup_seconds(self.comm)
+
+    def _carry(self, carried: tuple[np.ndarray, np.ndarray]) -> bool:
+        """The predictor's lift with the carried nodes, and with those it pushes into an obstacle (collective).
+
+        The lift is applied whole; where it pushes a node that was clear of the obstacle into it, that node is
+        carried too and the lift solved again (:data:`CARRY_ROUNDS`, ``ExternalTerms.carry_more``). A lift refused
+        for another reason, or with no node to add, is shortened to the largest admissible ``2^-k`` without a new
+        solve. Whether it moved the state (else the state is the anchor).
+        """
+        assert self.external is not None
+        predictor = self._boundary_predictor
+        for _ in range(CARRY_ROUNDS):
+            if self._predict(carried, halve=False):
+                return True
+            if not predictor.refused:  # the lift's linear solve failed: the state is the anchor
+                return False
+            more = self.external.carry_more(carried) if self.external.refusal() else None
+            if more is None:
+                return predictor.halve_refused(self._admissible)
+            carried = more  # carry_more put the state back at the anchor
+        return self._predict(carried)  # the rounds ran out: the last set's lift, halved as far as needed
 
     def _predict(self, carried: tuple[np.ndarray, np.ndarray] | None = None, halve: bool = True) -> bool:
         """Run the boundary-increment predictor (with the nodes an obstacle carries); whether it moved the state

@@ -52,6 +52,10 @@ class BoundaryPredictor:
         """Lifts solved again with the preconditioner rebuilt after a failed Krylov solve (:meth:`_solve`)."""
         self.direct_fallbacks = 0
         """Lifts solved by the LU fallback (:meth:`_direct_fallback`)."""
+        self._refused: PETSc.Vec | None = None
+        self.refused = False
+        """Whether the last lift with ``halve=False`` was solved, applied whole and found inadmissible
+        (:meth:`halve_refused` shortens it without solving again)."""
 
     def moved(self) -> bool:
         """Whether the Dirichlet values differ from the current state anywhere (collective)."""
@@ -99,18 +103,40 @@ class BoundaryPredictor:
         Returns:
             Whether a step was applied (with ``halve=False``: whether the whole step is admissible).
         """
+        self._drop_refused()
         x = self._state
         self.problem.u.x.petsc_vec.copy(x)
         # copy() moves the owned entries only; the lifting below reads x's ghosts too.
         _ghost_update(x, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)  # type: ignore[arg-type]  # petsc4py: int enums
         refresh()
         du = x.duplicate()
+        keep = False
         try:
             if not self._solve(ksp, x, du, preconditioner, tangent_terms, carried):
                 return False
-            return self._apply(x, du, admissible, MAX_PREDICTOR_HALVINGS if halve else 0)
+            applied = self._apply(x, du, admissible, MAX_PREDICTOR_HALVINGS if halve else 0)
+            if not halve and not applied:
+                self._refused, self.refused, keep = du, True, True  # for halve_refused
+            return applied
         finally:
-            du.destroy()
+            if not keep:
+                du.destroy()
+
+    def halve_refused(self, admissible: Callable[[], bool]) -> bool:
+        """The last lift refused whole (``halve=False``), applied at the largest admissible ``2^-k``, ``k >= 1``,
+        from the state it started at (back there if none is admissible); no new solve. Whether a step was applied."""
+        du = self._refused
+        if du is None:
+            return False
+        try:
+            return self._apply(self._state, du, admissible, MAX_PREDICTOR_HALVINGS - 1, scale=0.5)
+        finally:
+            self._drop_refused()
+
+    def _drop_refused(self) -> None:
+        if self._refused is not None:
+            self._refused.destroy()
+        self._refused, self.refused = None, False
 
     def _solve(
         self,
@@ -187,16 +213,17 @@ class BoundaryPredictor:
         self.direct_fallbacks += 1
         return reason > 0 and bool(np.isfinite(du.norm()))
 
-    def _apply(self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool], halvings: int) -> bool:
-        """Move the unknown to ``x + 2^-k du`` for the smallest admissible ``k < halvings``; back to ``x`` if none
-        (``halvings = 0``: to ``x + du``, admissible or not)."""
+    def _apply(
+        self, x: PETSc.Vec, du: PETSc.Vec, admissible: Callable[[], bool], halvings: int, scale: float = 1.0
+    ) -> bool:
+        """Move the unknown to ``x + scale 2^-k du`` for the smallest admissible ``k < halvings``; back to ``x`` if
+        none (``halvings = 0``: to ``x + scale du``, admissible or not)."""
         u = self.problem.u
         if not halvings:
             assign_state(x, u)
-            u.x.petsc_vec.axpy(1.0, du)
+            u.x.petsc_vec.axpy(scale, du)
             u.x.scatter_forward()
             return admissible()
-        scale = 1.0
         for _ in range(halvings):
             assign_state(x, u)
             u.x.petsc_vec.axpy(scale, du)
