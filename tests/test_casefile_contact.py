@@ -157,25 +157,31 @@ def test_sphere_contact_in_a_case_file(shared_tmp):
         assert row["contact_force"][2] == pytest.approx(-row["reaction_top_Fz"], rel=1e-8, abs=1e-6)
 
 
-def test_sphere_path_in_a_case_file_equals_its_motion(shared_tmp):
-    """``path = {times, points}`` on a sphere (as on a tool): the script prints ``motion=Waypoints(...)`` and
-    compiles; the sphere pushed 2 cm up into the resting block along the path gives the forces of ``motion`` to
-    round-off, balanced by the reaction of the held top."""
+PLANE = {"type": "plane", "point": [0.0, 0.0, -5e-4], "normal": [0.0, 0.0, 1.0], "dhat": 1e-3}
+
+
+@pytest.mark.parametrize("obstacle", ["sphere", "plane", "cylinder"])
+def test_obstacle_path_in_a_case_file_equals_its_motion(shared_tmp, obstacle):
+    """``path = {times, points}`` on a sphere, plane or cylinder (as on a tool): the script prints
+    ``motion=Waypoints(...)`` and compiles; the obstacle pushed 2 cm up into the resting block along the path gives
+    the forces of ``motion`` to round-off, balanced by the reaction of the held top."""
     import tomllib
 
     from hyperfem.app.casefile import check_case
 
     runs = []
+    shape = {"sphere": SPHERE, "plane": PLANE, "cylinder": CYLINDER}[obstacle]
     for i, keys in enumerate(({"path": {"times": [0.0, 1.0], "points": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.02]]}},
                               {"motion": [0.0, 0.0, 0.02]})):
         data = tomllib.loads(CASE.read_text())
         data["mesh"]["file"] = str(ROOT / "meshes" / "block_h0.34.msh")
-        data["contact"][0] = {"boundary": "bottom", **SPHERE, **keys}
+        data["contact"][0] = {"boundary": "bottom", **shape, **keys}
         data["bc"][2]["value"] = [0.0]
-        data["output"].update({"fields": [], "checkpoint": False, "directory": str(shared_tmp / f"path{i}")})
-        case = check_case(data, shared_tmp / f"path{i}.toml")
+        folder = shared_tmp / f"{obstacle}_path{i}"
+        data["output"].update({"fields": [], "checkpoint": False, "directory": str(folder)})
+        case = check_case(data, shared_tmp / f"{obstacle}_path{i}.toml")
         text = script(case)
-        compile(text, "sphere_path.py", "exec")
+        compile(text, f"{obstacle}_path.py", "exec")
         if i == 0:
             assert "motion=Waypoints(times=(0.0, 1.0), points=((0.0, 0.0, 0.0), (0.0, 0.0, 0.02)))" in " ".join(
                 text.split())

@@ -446,6 +446,33 @@ def test_block_dropped_on_the_plane_semi_implicit_stops_without_penetrating():
     assert rows[-1]["kinetic_energy"] < 1e-4 * rows[0]["kinetic_energy"]
 
 
+def test_plane_on_a_path_in_dynamics_equals_its_ramped_motion():
+    """A plane moved along a path (Waypoints in seconds: up 0.03 by t = 0.2, then held) under a free block at rest
+    0.01 above it, backward Euler: the forces and gaps of every step equal those of the plane moved by
+    ``motion`` with the same ramp as its profile (to round-off); the plane lifts the block, none penetrates."""
+    from hyperfem import dynamics as dyn
+    from hyperfem.loading import Waypoints
+
+    runs = []
+    for motion, profile in (((0.0, 0.0, 0.03), Ramp(t1=0.2)),
+                            (Waypoints(times=(0.0, 0.2, 1.0), points=((0, 0, 0), (0, 0, 0.03), (0, 0, 0.03))), None)):
+        base = hf.HyperelasticProblem(_cube(MPI.COMM_WORLD, 2), lambda F: hf.materials.neo_hookean(F, PARAMS))
+        problem = dyn.IncrementalProblem(base, dyn.BackwardEuler(), dyn.MassDensity(1.0))
+        extra = {} if profile is None else {"profile": profile}
+        contact = PlaneContact("bottom", point=(0.0, 0.0, -0.01), normal=(0.0, 0.0, 1.0), dhat=DHAT, motion=motion,
+                               **extra).bind(problem)
+        solver = hf.NewtonSolver(problem, TIGHT, external_energies=[contact])
+        problem.initial_acceleration()
+        iterates = _watch(solver, contact)
+        summary = Simulation(problem, solver, dyn.TimeStepping(dt=0.05, t_end=0.3), [Recorder(contact)]).run()
+        assert summary["completed"] and min(iterates) > 0.0
+        runs.append(summary["rows"])
+    assert max(row["contact_force"][2] for row in runs[1]) > 0.1
+    for ramped, on_path in zip(runs[0], runs[1], strict=True):
+        assert on_path["contact_force"] == pytest.approx(ramped["contact_force"], rel=1e-9, abs=1e-12)
+        assert on_path["contact_min_distance"] == pytest.approx(ramped["contact_min_distance"], rel=1e-9)
+
+
 def _dropped_state(comm) -> list[float]:
     from hyperfem import dynamics as dyn
 
