@@ -725,9 +725,9 @@ def test_sphere_one_rank_equals_two_ranks():
     [
         (lambda t: (0.0, t), "a motion path must give 3 finite components, got [0.0, 0.0] (shape (2,)) at t = 0"),
         (lambda t: (0.0, 0.0, float("nan")), "a motion path must give 3 finite components"),
-        (lambda t: "down", "a motion path must give 3 numbers at t = 0 (ValueError: could not convert"),
+        (lambda t: "down", "a motion path must give 3 numbers at t = 0 (ValueError: "),
         (lambda t: [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]], "got [0.0, 0.0, 0.0, 1.0, 1.0, 1.0] (shape (2, 3))"),
-        (lambda t: (0.0, 0.0, 1.0 / t), "a motion path must give 3 numbers at t = 0 (ZeroDivisionError: float"),
+        (lambda t: (0.0, 0.0, 1.0 / t), "a motion path must give 3 numbers at t = 0 (ZeroDivisionError: "),
     ],
 )
 def test_a_bad_obstacle_path_is_one_line(motion, expected):
