@@ -211,19 +211,19 @@ def test_the_copy_for_amg_is_made_only_when_the_hierarchy_is_rebuilt(lag, monkey
     It changes nothing: the same Newton and Krylov iterations and the same displacement as copying at every
     iteration (serially bit for bit; on 2 ranks GAMG's set-up differs between runs at round-off).
     """
-    import hyperfem.solver.newton as newton
+    from hyperfem.solver.lag import PreconditionerLag, preconditioner_rebuilt
     from hyperfem.solver.linear import AIJPreconditioner
 
-    assert [newton.preconditioner_rebuilt(k, 3) for k in range(7)] == [True, False, False, True, False, False, True]
-    assert all(newton.preconditioner_rebuilt(k, 1) for k in range(4))
-    assert [newton.preconditioner_rebuilt(k, -1) for k in range(3)] == [True, False, False]
+    assert [preconditioner_rebuilt(k, 3) for k in range(7)] == [True, False, False, True, False, False, True]
+    assert all(preconditioner_rebuilt(k, 1) for k in range(4))
+    assert [preconditioner_rebuilt(k, -1) for k in range(3)] == [True, False, False]
     copy = AIJPreconditioner.__call__
     calls: list[int] = []
     monkeypatch.setattr(AIJPreconditioner, "__call__", lambda self, A: calls.append(1) or copy(self, A))
     runs = []
     for always in (False, True):
         if always:
-            monkeypatch.setattr(newton, "preconditioner_rebuilt", lambda iteration, lag: True)
+            monkeypatch.setattr(PreconditionerLag, "reused", property(lambda self: False))
         calls.clear()
         problem = _beam(bend_load())
         base = choose_linear_solver(problem, threshold=0)
@@ -238,6 +238,98 @@ def test_the_copy_for_amg_is_made_only_when_the_hierarchy_is_rebuilt(lag, monkey
     np.testing.assert_allclose(u, u_all, rtol=0, atol=1e-12 * np.abs(u_all).max())
     # a tangent at iterations 0 .. its-1; copied at the multiples of the lag only
     assert copies_all - copies == its - -(-its // lag)
+
+
+def _lagged_run(lag: int, growth: float | None = None, monkeypatch=None):
+    """The beam bent in one solve on the iterative path with ``snes_lag_preconditioner`` = ``lag``.
+
+    Returns the solver, its Krylov iterations per Newton iteration, and the number of AIJ copies (the
+    tangents at which SNES set the preconditioner up). ``growth`` replaces :data:`REBUILD_GROWTH` (and the
+    slack is then 0).
+    """
+    import hyperfem.solver.lag as lag_module
+    from hyperfem.solver.linear import AIJPreconditioner
+
+    if growth is not None:
+        monkeypatch.setattr(lag_module, "REBUILD_GROWTH", growth)
+        monkeypatch.setattr(lag_module, "REBUILD_SLACK", 0)
+    copies: list[int] = []
+    copy = AIJPreconditioner.__call__
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(AIJPreconditioner, "__call__", lambda self, A: copies.append(1) or copy(self, A))
+        problem = _beam(bend_load())
+        base = choose_linear_solver(problem, threshold=0)
+        linear = dataclasses.replace(base, options={**base.options, "snes_lag_preconditioner": lag})
+        solver = hf.NewtonSolver(problem, linear_solver=linear)
+        counts: list[int] = []
+        ksp = solver.snes.getKSP()
+        ksp.setMonitor(lambda _k, i, _r: counts.append(0) if i == 0 else counts.__setitem__(-1, i))
+        problem.set_time(1.0)
+        assert solver.solve(raise_on_failure=True).converged
+    return solver, counts, len(copies)
+
+
+def test_the_lagged_preconditioner_is_rebuilt_early_when_the_krylov_count_grows(monkeypatch):
+    """A lagged preconditioner whose last Krylov solve took more than REBUILD_GROWTH times its first one's
+    iterations (plus REBUILD_SLACK) is rebuilt at the next tangent: SNES itself sets it up again
+    (``SNESSetLagPreconditioner`` through ``ctypes``), with the AIJ copy, and the Krylov iterations are those
+    of a preconditioner rebuilt at every tangent. The bend's own counts (11-18 CG iterations on 28.6k unknowns
+    with the first tangent's hierarchy) never trip the default rule: one set-up per solve."""
+    from hyperfem.solver.lag import snes_lag
+
+    solver, counts, copies = _lagged_run(10)
+    assert len(counts) >= 3 and copies == 1 and solver._lag.early_rebuilds == 0
+    assert snes_lag(solver.snes) == 10
+    every, counts_every, copies_every = _lagged_run(1)
+    assert copies_every == len(counts_every)
+    # growth 0: every lagged tangent after the first solve counts as grown
+    early, counts_early, copies_early = _lagged_run(10, growth=0.0, monkeypatch=monkeypatch)
+    its = len(counts_early)
+    assert its == len(counts_every) and copies_early == its and early._lag.early_rebuilds == its - 1
+    if MPI.COMM_WORLD.size == 1:  # on 2 ranks GAMG's set-up differs between runs at round-off
+        assert counts_early == counts_every
+    assert snes_lag(early.snes) == 10  # the configured lag is back after each early rebuild
+
+
+@pytest.mark.parametrize("lag", [1, 2, 10])
+def test_a_lift_rebuilds_only_a_preconditioner_older_than_its_tangent(lag):
+    """The predictor's lift solves with the preconditioner as SNES left it. Where SNES set it up at its last
+    tangent, the lift's KSP sets it up again on the lift's own tangent, and a failed Krylov solve goes to LU at
+    once; where SNES reused an older one there, the lift rebuilds it first. The beam's end is pulled down in 2
+    steps; the second step's Krylov solves are cut to one iteration, so its lift fails either way and ends in
+    LU. The answers equal the LU run's."""
+    from hyperfem.solver.lag import preconditioner_rebuilt
+
+    def run(options: dict | None):
+        domain = hf.read_mesh(MESHES / "beam_h2.msh")
+        bcs = [hf.Clamp("clamped"), hf.PrescribedDisplacement("free_end", [0.0, -1.0, 0.0])]
+        problem = hf.HyperelasticProblem(
+            domain, lambda F: hf.materials.neo_hookean(F, CantileverSpec().lame), bcs=bcs
+        )
+        linear = None
+        if options is not None:
+            base = choose_linear_solver(problem, threshold=0)
+            linear = dataclasses.replace(base, options={**base.options, **options})
+        solver = hf.NewtonSolver(problem, {"snes_rtol": 1e-10}, linear_solver=linear)
+        problem.set_time(0.5)
+        assert solver.solve().converged
+        first = solver.snes.getIterationNumber()
+        predictor = solver._boundary_predictor
+        before = predictor.preconditioner_rebuilds, predictor.direct_fallbacks
+        ksp = solver.snes.getKSP()
+        rtol, atol, divtol, _ = ksp.getTolerances()
+        ksp.setTolerances(rtol=rtol, atol=atol, divtol=divtol, max_it=1)
+        problem.set_time(1.0)
+        assert solver.solve().converged
+        after = predictor.preconditioner_rebuilds, predictor.direct_fallbacks
+        return first, (after[0] - before[0], after[1] - before[1]), problem.u.x.array.copy()
+
+    _, _, u_lu = run(None)
+    first, (rebuilds, fallbacks), u = run({"snes_lag_preconditioner": lag})
+    assert first >= 2
+    assert fallbacks == 1  # the lift
+    assert rebuilds == (0 if preconditioner_rebuilt(first - 1, lag) else 1)
+    np.testing.assert_allclose(u, u_lu, rtol=0, atol=1e-8 * np.abs(u_lu).max())
 
 
 def test_iterative_prescribed_displacement_with_predictor():
@@ -391,10 +483,15 @@ def test_mixed_displacement_block_takes_a_users_preconditioner():
         np.testing.assert_allclose(other, results[0], rtol=0, atol=1e-8 * scale)
 
 
-def test_a_mixed_lift_that_fails_keeps_its_field_split():
+def test_a_mixed_lift_that_fails_keeps_its_field_split(monkeypatch):
     """A failed Krylov lift on the lagged field split is solved again with the preconditioner rebuilt, not reset:
     ``PC.reset()`` dropped the split's index sets and the next solve raised PETSc's "must have at least two
-    fields". Here every Krylov solve stops after one iteration, so the lift ends on LU, and Newton too."""
+    fields". Here every Krylov solve stops after one iteration, so the lift ends on LU, and Newton too. The lift
+    is the first solve's, so the preconditioner is marked as one SNES reused at its last tangent (the state in
+    which a lift rebuilds it)."""
+    from hyperfem.solver.lag import PreconditionerLag
+
+    monkeypatch.setattr(PreconditionerLag, "reused", property(lambda self: True))
     results = []
     for threshold in (10**12, 0):
         problem = _mixed_block("tetrahedron")

@@ -99,7 +99,7 @@ _AMG: dict[str, object] = {
     "mg_levels_pc_type": "jacobi",
     "pc_gamg_reuse_interpolation": True,
     "pc_gamg_threshold": 0.02,
-    "snes_lag_preconditioner": 2,
+    "snes_lag_preconditioner": 10,
     "ksp_rtol": 1e-6,
     "ksp_atol": 1e-30,
     "ksp_max_it": 1000,

@@ -79,6 +79,7 @@ from hyperfem.solver.filters import (
 )
 from hyperfem.solver.forcing import FinalStepForcing
 from hyperfem.solver.garbage import release_garbage, state_communicators
+from hyperfem.solver.lag import PreconditionerLag
 from hyperfem.solver.linear import (
     AIJPreconditioner,
     LinearSolver,
@@ -220,24 +221,6 @@ def _check_rigid_motion(problem: SolidProblem) -> None:
         )
 
 
-def preconditioner_rebuilt(iteration: int, lag: int) -> bool:
-    """Whether SNES sets the preconditioner up again after the tangent of Newton iteration ``iteration``.
-
-    SNES's rule for ``snes_lag_preconditioner`` = ``lag`` (``SNESComputeJacobian``): -1 never (after the
-    first), ``lag`` > 1 at the iterations that are multiples of it, else always. The AIJ copy of a blocked
-    tangent (AMG's preconditioning matrix) is only read when the preconditioner is set up, so inside the
-    SNES solve it is updated only then: the other iterations' copies changed nothing (measured: the same
-    Krylov iterations and displacements to the last bit) and cost 7–15 % of a P1 or P2 tangent assembly
-    (bend, 28.6k unknowns: 9 of 64 ms serial, 7 of 45 ms on 2 ranks; P2 22 of 320 ms). A shifted
-    preconditioning matrix (the mixed field split) is updated at every tangent, as before.
-    """
-    if lag == -1:
-        return iteration == 0
-    if lag > 1:
-        return iteration % lag == 0
-    return True
-
-
 class NewtonSolver:
     """Newton's method with line search for a :class:`~hyperfem.problem.protocol.SolidProblem`.
 
@@ -368,8 +351,7 @@ class NewtonSolver:
         self._linear_failure = 0
         self.direct_fallbacks = 0
         """Newton directions solved by the MUMPS fallback after a failed Krylov solve (see ``_recover_direction``)."""
-        lag = int(str(self.options.get("snes_lag_preconditioner", 1)))
-        self._lagged = lag > 1 or lag == -1  # the preconditioner may be older than the tangent (-1: built once)
+        self._lag = PreconditionerLag(self.snes, int(str(self.options.get("snes_lag_preconditioner", 1))))
         self.preconditioner_rebuilds = 0
         """Lagged preconditioners rebuilt on the current tangent after a failed solve (``_recover_direction``)."""
         # Callbacks hold the solver weakly: a strong reference from the SNES
@@ -390,7 +372,7 @@ class NewtonSolver:
         # A failed linear solve goes on to the pre-check, which recovers a direction or ends the solve.
         self.snes.setMaxLinearSolveFailures(1_000_000)
         self.predictor = bool(predictor)
-        self._boundary_predictor = BoundaryPredictor(problem, self._nlp, lagged=self._lagged)
+        self._boundary_predictor = BoundaryPredictor(problem, self._nlp, lag=self._lag)
 
         def test(snes_: PETSc.SNES, it: int, norms: tuple[float, float, float]) -> int:
             return me()._guarded(me()._converged, snes_, it, norms)
@@ -491,16 +473,14 @@ class NewtonSolver:
         # solve, only at the iterations SNES sets it up (the blocked path has no external energies, whose
         # recovery assembles and sets up out of turn); a tangent assembled outside it (continuation) always
         # updates it, and a shifted one always.
-        lag = 1
-        if isinstance(preconditioner, AIJPreconditioner):
-            lag = int(self.options.get("snes_lag_preconditioner", 1))  # type: ignore[call-overload]
+        copy_always = not isinstance(preconditioner, AIJPreconditioner)
 
         replaced: list[PETSc.Mat] = []
 
         def shifted_jacobian(snes_: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
             jacobian(snes_, x, A, None, **jacobian_kw)
             replaced.clear()
-            if not me()._in_snes or preconditioner_rebuilt(snes_.getIterationNumber(), lag):
+            if copy_always or not me()._in_snes or not me()._lag.reused:
                 preconditioner(A)
             if preconditioner.matrix.handle != P.handle:
                 # A new preconditioning matrix (the tangent's pattern grew, ShiftedPreconditioner): SNES
@@ -663,7 +643,7 @@ class NewtonSolver:
             ksp.setOperators(J, P)
             ksp.solve(r, y)
             failed = int(ksp.getConvergedReason()) < 0  # type: ignore[call-overload]  # an int
-        if failed and self._lagged and int(ksp.getConvergedReason()) != _INDEFINITE_MATRIX:  # type: ignore[call-overload]
+        if failed and self._lag.reused and int(ksp.getConvergedReason()) != _INDEFINITE_MATRIX:  # type: ignore[call-overload]
             # A lagged preconditioner (``snes_lag_preconditioner``) built on an
             # older tangent, e.g. before the contact pairs changed: the AMG's
             # Chebyshev bounds no longer fit, CG stops with an indefinite
@@ -674,6 +654,7 @@ class NewtonSolver:
             if isinstance(self._preconditioner, AIJPreconditioner):  # its copy is refreshed only when SNES sets up
                 self._preconditioner(J)
             ksp.getPC().setReusePreconditioner(False)
+            self._lag.rebuilt()
             ksp.setOperators(J, P)
             ksp.solve(r, y)
             failed = int(ksp.getConvergedReason()) < 0  # type: ignore[call-overload]  # an int
@@ -699,6 +680,7 @@ class NewtonSolver:
             return _LINEAR
         reason = self._roundoff(snes, it, norms)
         self._forcing(snes, it, float(norms[2]), reason)
+        self._lag(it, reason)
         return reason
 
     @property

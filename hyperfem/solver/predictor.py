@@ -21,6 +21,7 @@ import dolfinx.fem.petsc as fpetsc
 from dolfinx.la.petsc import _ghost_update
 
 from hyperfem.problem.protocol import SolidProblem
+from hyperfem.solver.lag import PreconditionerLag
 from hyperfem.solver.linear import LinearSolver
 from hyperfem.solver.state import assign_state
 
@@ -38,16 +39,20 @@ class BoundaryPredictor:
     Args:
         problem: The problem (its unknown and Dirichlet conditions).
         nlp: The solver's ``dolfinx.fem.petsc.NonlinearProblem`` (tangent form and matrix).
-        lagged: Whether the solver lags its preconditioner (``snes_lag_preconditioner``): a lift whose Krylov
-            solve fails is then solved again with the preconditioner rebuilt, before the LU fallback.
+        lag: The solver's preconditioner lag (``None``: not lagged). A lift solves with the preconditioner
+            as SNES left it; where SNES's last tangent reused an older one (:attr:`PreconditionerLag.reused`)
+            and the Krylov solve fails, the lift is solved again with the preconditioner rebuilt, before the
+            LU fallback. A preconditioner built on the lift's own tangent goes to the LU fallback at once.
     """
 
-    def __init__(self, problem: SolidProblem, nlp: fpetsc.NonlinearProblem, lagged: bool = False):
+    def __init__(
+        self, problem: SolidProblem, nlp: fpetsc.NonlinearProblem, lag: PreconditionerLag | None = None
+    ):
         self.problem = problem
         self._nlp = nlp
         self._state = nlp.x.duplicate()
         self._rhs = nlp.b.duplicate()
-        self._lagged = lagged
+        self._lag = lag
         self.preconditioner_rebuilds = 0
         """Lifts solved again with the preconditioner rebuilt after a failed Krylov solve (:meth:`_solve`)."""
         self.direct_fallbacks = 0
@@ -175,7 +180,7 @@ class BoundaryPredictor:
         ksp.setOperators(A, A if P is None else P)
         ksp.solve(b, du)
         reason = int(ksp.getConvergedReason())  # type: ignore[call-overload]  # petsc4py: an int
-        if reason <= 0 and self._lagged and reason != _INDEFINITE_MATRIX:
+        if reason <= 0 and self._lag is not None and self._lag.reused and reason != _INDEFINITE_MATRIX:
             # The preconditioner as SNES left it, lagged (built on an older tangent, e.g. before an obstacle's
             # barrier block entered it; the AMG's Chebyshev bounds no longer fit): build it anew on this tangent
             # before any LU, as ``NewtonSolver._recover_direction`` does for a Newton direction.
@@ -189,6 +194,7 @@ class BoundaryPredictor:
                 # surgery demo's drag (--n 16) took 16 steps and 69 s, reset 12 steps and 65 s, the steps
                 # an unlagged preconditioner takes.
                 pc.reset()
+            self._lag.rebuilt()
             ksp.setOperators(A, A if P is None else P)
             ksp.solve(b, du)
             self.preconditioner_rebuilds += 1
