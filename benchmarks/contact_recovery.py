@@ -91,7 +91,15 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=16)
     p.add_argument("--json", type=Path, default=None, help="append the result as a JSON line")
+    p.add_argument(
+        "--lag", type=int, default=None,
+        help="snes_lag_preconditioner of the P1 iterative path instead of the default (2 before stop 39)",
+    )
     args = p.parse_args()
+    if args.lag is not None:  # the demo chooses its linear solver itself: change the default it reads
+        from hyperfem.solver import linear
+
+        linear.SYMMETRIC_ITERATIVE["snes_lag_preconditioner"] = args.lag
     comm = MPI.COMM_WORLD
     PETSc.Log.begin()
     hf.NewtonSolver = CountingSolver  # the demo builds its solver through hf
@@ -101,10 +109,11 @@ def main() -> None:
     solver = CountingSolver.last
     events = {name: PETSc.Log.Event(name).getPerfInfo() for name in EVENTS}
     row = {
-        "n": args.n, "ranks": comm.size, "time": elapsed, "steps": result["steps"],
+        "n": args.n, "ranks": comm.size, "lag": args.lag, "time": elapsed, "steps": result["steps"],
         "direct_fallbacks": solver.direct_fallbacks, "preconditioner_rebuilds": solver.preconditioner_rebuilds,
         "lift_fallbacks": solver._boundary_predictor.direct_fallbacks,
         "lift_rebuilds": solver._boundary_predictor.preconditioner_rebuilds,
+        "early_rebuilds": solver._lag.early_rebuilds,
         "force_end": result["force"][-1], "min_distance": result["min_distance"],
         "intersecting": result["intersecting"], "recoveries": dict(CountingSolver.reasons),
         "recovery_seconds": dict(CountingSolver.seconds),
