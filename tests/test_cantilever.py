@@ -79,6 +79,35 @@ def test_energy_line_search_beats_residual_line_search():
     np.testing.assert_allclose(d_residual, d_energy, rtol=1e-7, atol=1e-9)
 
 
+def test_line_search_reuses_the_accepted_trials_energy_and_judged_residual(monkeypatch):
+    """The energy of each iterate after the first is the accepted trial's, and a step judged by its residual
+    is not assembled again: the same iterates, residual norms and displacement as assembling both anew (bit
+    for bit serially; on 2 ranks MUMPS's own round-off differs between runs), with one energy assembly fewer
+    per Newton iteration."""
+    from hyperfem.solver.objective import EnergyObjective
+
+    runs = []
+    for reuse in (True, False):
+        if not reuse:
+            energy = EnergyObjective._energy
+            monkeypatch.setattr(EnergyObjective, "_energy", lambda self, x, current, f=energy: f(self, x, False))
+            monkeypatch.setattr(EnergyObjective, "judged_residual", lambda self, x, b: False)
+        problem, solver = _bend_solver("beam_h1.msh")
+        assemblies: list[int] = []
+        energies = solver._energies
+        solver._energies = lambda calls=assemblies, f=energies: calls.append(1) or f()
+        rec = solver.solve(raise_on_failure=True)
+        runs.append((rec, len(assemblies), solver._objective.reused, problem.u.x.array.copy()))
+    (rec, assembled, reused, u), (rec_all, assembled_all, reused_all, u_all) = runs
+    assert rec.iterations == rec_all.iterations >= 3 and reused == rec.iterations - 1 and reused_all == 0
+    assert assembled == assembled_all - reused
+    assert rec.roundoff_accepts >= 1  # a step was judged by its residual (that assembly reused)
+    exact = MPI.COMM_WORLD.size == 1
+    floor = 0 if exact else 1e-12 * rec_all.residual_norms[0]  # the last norms sit at round-off
+    np.testing.assert_allclose(rec.residual_norms, rec_all.residual_norms, rtol=0 if exact else 1e-10, atol=floor)
+    np.testing.assert_allclose(u, u_all, rtol=0, atol=0 if exact else 1e-12 * np.abs(u_all).max())
+
+
 def _bend_solver(mesh="beam_h2.msh", options=None, **kwargs):
     domain = hf.read_mesh(MESHES / mesh)
     params = CantileverSpec().lame

@@ -361,6 +361,8 @@ class NewtonSolver:
         me = cast(_SolverRef, weakref.ref(self))
         self._wire_assembly(me)
         self._objective = self._energy_objective(me, energy_line_search, energy_roundoff_rtol, compiler)
+        if self._objective is not None:
+            self._reuse_judged_residual(me)
         self.min_jacobian = resolve_min_jacobian(min_jacobian, problem)
         self._roundoff = RoundoffStop(self.snes, problem, self._nlp.x, self._nlp.b, roundoff_factor)
         self._forcing = FinalStepForcing(self.snes)
@@ -490,6 +492,18 @@ class NewtonSolver:
                 snes_.setJacobian(shifted_jacobian, A, preconditioner.matrix)
 
         snes.setJacobian(shifted_jacobian, self._nlp.A, preconditioner.matrix)
+
+    def _reuse_judged_residual(self, me: _SolverRef) -> None:
+        """The residual of a step the energy line search judged by its residual is not assembled twice."""
+        snes = self.snes
+        b, (residual, _, residual_kw) = cast(tuple[PETSc.Vec, _Callback], snes.getFunction())  # petsc4py stubs
+
+        def residual_once(snes_: PETSc.SNES, x: PETSc.Vec, b_: PETSc.Vec) -> None:
+            objective = me()._objective
+            if objective is None or not objective.judged_residual(x, b_):
+                residual(snes_, x, b_, **residual_kw)
+
+        snes.setFunction(residual_once, b)
 
     def _energy_objective(
         self, me: _SolverRef, energy_line_search: bool | None, rtol: float, compiler: dict[str, Any]

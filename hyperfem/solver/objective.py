@@ -56,14 +56,31 @@ class EnergyObjective:
         self._full_step_change: float | None = None
         self._trial = template_x.duplicate()
         self._trial_energy: tuple[float, float] | None = None
+        self._judged_x = template_x.duplicate()
+        self._judged_valid = False
         self.roundoff_accepts = 0
         self.reused = 0
         """Energies of an iterate taken from its evaluation as the previous line search's trial (so far)."""
 
     def reset(self) -> None:
-        """Forget the reference energy and the last trial's (at the start of a solve)."""
+        """Forget the reference energy, the last trial's and the judged residual (at the start of a solve)."""
         self._ref = None
         self._trial_energy = None
+        self._judged_valid = False
+
+    def judged_residual(self, x: PETSc.Vec, b: PETSc.Vec) -> bool:
+        """Copy into ``b`` the residual :meth:`_judge_by_residual` assembled at ``x``, if it was at ``x``.
+
+        SNES assembles the residual of the step it accepted; a step judged by the residual had it
+        assembled already (one residual assembly saved per judged step). Used once. Collective.
+        """
+        if not self._judged_valid:
+            return False
+        self._judged_valid = False
+        if not x.equal(self._judged_x):
+            return False
+        self._residual_work.copy(b)
+        return True
 
     def _energy(self, x: PETSc.Vec, current: bool) -> tuple[float, float]:
         r"""(:math:`\Pi(x)`, its scale): the last trial's when ``x`` is that trial, accepted (``current``).
@@ -121,6 +138,8 @@ class EnergyObjective:
         R = snes.getFunction()[0]  # type: ignore[index]  # petsc4py stubs: getFunction returns (Vec, callback)
         snes.computeFunction(x, self._residual_work)
         self._set_state(x)
+        x.copy(self._judged_x)
+        self._judged_valid = True
         if self._residual_work.norm() < R.norm():
             self.roundoff_accepts += 1
             return ref - predicted
