@@ -141,7 +141,7 @@ def single(args) -> None:
             rec = solver.solve(raise_on_failure=True)
             row.update(
                 linear_solver=rec.linear_solver, newton_iterations=rec.iterations,
-                krylov_iterations=rec.linear_iterations,
+                krylov_iterations=rec.linear_iterations, early_rebuilds=solver._lag.early_rebuilds,
             )
         else:
             from dolfinx.fem.petsc import NonlinearProblem
@@ -186,7 +186,8 @@ def single(args) -> None:
         solve = time.perf_counter() - t1
         u = problem.u
         row.update(
-            linear_solver=rec.linear_solver, newton_iterations=rec.iterations, krylov_iterations=rec.linear_iterations
+            linear_solver=rec.linear_solver, newton_iterations=rec.iterations, krylov_iterations=rec.linear_iterations,
+            early_rebuilds=solver._lag.early_rebuilds,
         )
     else:
         import ufl

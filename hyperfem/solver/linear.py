@@ -114,13 +114,25 @@ one Newton solve, this 2-core machine, best of 2, interleaved; issue 20):
 
 * ``pc_gamg_threshold 0.02`` drops weak couplings from the aggregation
   graph: 97 → 68 CG iterations at 28.6k unknowns, 100 → 55 at 92k;
-* ``snes_lag_preconditioner 2`` rebuilds the hierarchy at every second
-  Newton iteration (the Galerkin products are the dominant set-up cost; a
-  one-iteration-old hierarchy costs 1–2 CG iterations more per solve).
+* ``snes_lag_preconditioner 10``: the hierarchy is built at the first
+  Newton iteration of a solve and reused (the Galerkin products are the
+  dominant set-up cost), rebuilt early only where a Krylov solve takes more
+  than twice the iterations of the first one with it
+  (:class:`~hyperfem.solver.lag.PreconditionerLag`). The first tangent's
+  hierarchy preconditions the later ones nearly as well: on the bend at
+  28.6k unknowns 11, 14, 15, 18, 16 CG iterations against 11, 13, 14, 17, 14
+  rebuilt at every tangent.
 
-Together: 3.76 → 2.67 s at 28.6k, 13.0 → 10.2 s at 92k, the same
-displacement to 4e-12 (``benchmarks/scale.py --variants hyperfem hand-tuned``
-for the comparison in one run)."""
+With a lag of 2 (until stop 39): 3.76 → 2.67 s at 28.6k, 13.0 → 10.2 s at
+92k against the textbook set-up, serially. Lag 10 against lag 2, bend and
+twist, P1, 28.6k and 92k, 1 and 2 ranks (``benchmarks/scale.py --petsc
+snes_lag_preconditioner=2``, three interleaved runs each,
+``results/issue20_lag_s39.jsonl``): 9–21 % faster in every row, the same
+Newton iterations, 3–6 more CG iterations per solve, the test point to
+1.5e-13; e.g. bend 28.6k on 2 ranks 0.60–0.70 against 0.72–0.77 s, 92k
+serially 3.81–3.90 against 4.28–4.46 s. (Before the final-step forcing of
+:mod:`~hyperfem.solver.forcing`, a lag of 5 had cost a Newton iteration at
+92k.)"""
 
 NONSYMMETRIC_ITERATIVE: dict[str, object] = {"ksp_type": "gmres", "ksp_gmres_restart": 100, **_AMG}
 """GMRES + AMG for the non-symmetric tangents of follower loads."""
@@ -177,7 +189,7 @@ contact, where the barrier's tangent switches between exact and projected)
 cost more than the Krylov ones. The defaults are kept."""
 
 HIGH_ORDER_LAG = 5
-"""``snes_lag_preconditioner`` of the iterative path for displacement degree 2 and higher (P1: 2).
+"""``snes_lag_preconditioner`` of the iterative path for displacement degree 2 and higher (P1: 10).
 
 The AMG set-up of a P2 tangent (its Galerkin products) costs 1.5 s at 92k
 unknowns against 0.2–0.4 s of Krylov iterations per Newton iteration, and a
@@ -186,8 +198,10 @@ ones nearly as well: measured (``benchmarks/scale.py --petsc
 snes_lag_preconditioner=N``, 92k unknowns, quiet 2-core machine, two runs
 each): bend serial 13.3–13.8 s with lag 2 vs 11.0–12.2 s with 5 (94 vs 97 CG
 iterations), twist 15.8–16.1 vs 13.8–14.6 s, bend on 2 ranks 6.4–6.7 vs
-5.7–6.2 s, same Newton iterations and test point. On P1 the lag of 5 costs a
-Newton iteration (bend 92k: 4 → 5, 4.7 → 5.0 s), so P1 keeps 2.
+5.7–6.2 s, same Newton iterations and test point. (On P1 a lag of 5 then
+cost a Newton iteration, bend 92k: 4 → 5; since the final-step forcing it
+does not, and P1 takes 10, :data:`SYMMETRIC_ITERATIVE`.) The early rebuild
+of :class:`~hyperfem.solver.lag.PreconditionerLag` applies here too.
 
 Measured again on the p-multigrid, whose set-up is cheap (0.1–0.6 s per
 solve): lag 1 against 5, serial, beam meshes, two interleaved runs — bend P2
