@@ -127,7 +127,7 @@ With a lag of 2 (until stop 39): 3.76 → 2.67 s at 28.6k, 13.0 → 10.2 s at
 92k against the textbook set-up, serially. Lag 10 against lag 2, bend and
 twist, P1, 28.6k and 92k, 1 and 2 ranks (``benchmarks/scale.py --petsc
 snes_lag_preconditioner=2``, three interleaved runs each,
-``results/issue20_lag_s39.jsonl``): 9–21 % faster in every row, the same
+``results/issue20_lag_s39.jsonl``): 7–20 % faster in every row (medians), the same
 Newton iterations, 3–6 more CG iterations per solve, the test point to
 1.5e-13; e.g. bend 28.6k on 2 ranks 0.60–0.70 against 0.72–0.77 s, 92k
 serially 3.81–3.90 against 4.28–4.46 s. (Before the final-step forcing of
