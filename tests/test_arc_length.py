@@ -95,6 +95,39 @@ def test_prescribed_displacement_path_is_the_homogeneous_stretch():
     assert all(r.dt > 0 for r in history) and not any(r.limit_point for r in history)
 
 
+def test_the_path_on_the_lagged_iterative_solver_is_the_homogeneous_stretch(monkeypatch):
+    """Continuation on CG + GAMG lagged by SNES (``snes_lag_preconditioner`` 10): each bordered solve's
+    tangent is assembled outside the Newton solves, and the preconditioner is set up on it (SNES's reuse
+    flag would keep one built on a Newton iteration's tangent). The path is the closed form, as with LU."""
+    from hyperfem.solver import arc_length
+    from hyperfem.solver.linear import choose_linear_solver, pc_setup_seconds
+
+    pc_setup_seconds(MPI.COMM_WORLD)  # PETSc's log runs: PCSetUp is counted
+    tangents: list[int] = []
+    tangent = arc_length._Continuation.tangent
+    monkeypatch.setattr(arc_length._Continuation, "tangent", lambda self, lam: tangents.append(1) or tangent(self, lam))
+    domain = unit_cube(3)
+    params = LameParameters.from_youngs(10.0, 0.3)
+    problem = HyperelasticProblem(domain, lambda F: neo_hookean(F, params), bcs=uniaxial_rollers(1.5))
+    linear = choose_linear_solver(problem, threshold=0)
+    assert linear.options["pc_type"] == "gamg" and int(str(linear.options["snes_lag_preconditioner"])) > 1
+    solver = NewtonSolver(problem, linear_solver=linear)
+    probe = hf.io.probes.PointProbe(domain.mesh, [[1.0, 1.0, 1.0]])
+    seen: list = []
+    problem.set_time(0.1)  # a Newton solve first: SNES ends with an iteration count its lag does not divide
+    iterations = solver.solve(raise_on_failure=True).iterations
+    assert iterations % 10 != 0
+    setups = PETSc.Log.Event("PCSetUp_GAMG+").getPerfInfo()["count"]
+    history = continue_arc_length(
+        solver, ArcLength(increment=0.25, end=1.0), on_step=lambda r: seen.append(probe(problem.u))
+    )
+    setups = PETSc.Log.Event("PCSetUp_GAMG+").getPerfInfo()["count"] - setups
+    assert history[-1].time >= 1.0 and len(tangents) >= len(history)
+    assert setups >= len(tangents)  # a GAMG hierarchy for every tangent of the path
+    for record, values in zip(history, seen, strict=True):
+        assert values[0, 0] == pytest.approx(0.5 * record.time, abs=1e-7)
+
+
 def test_negative_pivots_against_dense_eigenvalues():
     comm = MPI.COMM_WORLD
     n = 12

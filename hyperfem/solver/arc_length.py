@@ -474,6 +474,9 @@ class _Continuation:
         if self.solver.external:  # PSD contact blocks: the bordered solve has no descent fallback, the inertia is
             self.solver.external.project_tangents()  # counted on these tangents (hyperfem.contact.nodal)
         self.snes.computeJacobian(self.x, self.A, self.P)
+        # SNES decided the KSP's reuse flag from its lag and its last solve's iteration count: a lagged
+        # preconditioner would stay built on a tangent of the last Newton solve. Built on this one instead.
+        self.ksp.getPC().setReusePreconditioner(False)
         self.ksp.setOperators(self.A, self.P)
 
     def solve(self, rhs: PETSc.Vec, out: PETSc.Vec) -> bool:
