@@ -97,11 +97,13 @@ def test_line_search_reuses_the_accepted_trials_energy_and_judged_residual(monke
         energies = solver._energies
         solver._energies = lambda calls=assemblies, f=energies: calls.append(1) or f()
         rec = solver.solve(raise_on_failure=True)
-        runs.append((rec, len(assemblies), solver._objective.reused, problem.u.x.array.copy()))
-    (rec, assembled, reused, u), (rec_all, assembled_all, reused_all, u_all) = runs
+        objective = solver._objective
+        counts = (len(assemblies), objective.energies_reused, objective.residuals_reused)
+        runs.append((rec, counts, problem.u.x.array.copy()))
+    (rec, (assembled, reused, copied), u), (rec_all, (assembled_all, reused_all, copied_all), u_all) = runs
     assert rec.iterations == rec_all.iterations >= 3 and reused == rec.iterations - 1 and reused_all == 0
     assert assembled == assembled_all - reused
-    assert rec.roundoff_accepts >= 1  # a step was judged by its residual (that assembly reused)
+    assert rec.roundoff_accepts >= 1 and copied >= 1 and copied_all == 0  # a judged step's residual copied
     exact = MPI.COMM_WORLD.size == 1
     floor = 0 if exact else 1e-12 * rec_all.residual_norms[0]  # the last norms sit at round-off
     np.testing.assert_allclose(rec.residual_norms, rec_all.residual_norms, rtol=0 if exact else 1e-10, atol=floor)

@@ -202,6 +202,7 @@ def test_a_lagged_preconditioner_that_fails_a_lift_is_rebuilt_before_any_fallbac
         problem.set_time(0.5)
         assert solver.solve().converged
         stiffness.value = 1e3
+        assert not iterative or solver._lag.reused  # SNES kept the hierarchy of an earlier tangent (lag 10)
         solver.snes.getKSP().getPC().setReusePreconditioner(True)
         problem.set_time(1.0)
         assert solver.solve().converged

@@ -477,6 +477,7 @@ class _Continuation:
         # SNES decided the KSP's reuse flag from its lag and its last solve's iteration count: a lagged
         # preconditioner would stay built on a tangent of the last Newton solve. Built on this one instead.
         self.ksp.getPC().setReusePreconditioner(False)
+        self.solver._lag.rebuilt()
         self.ksp.setOperators(self.A, self.P)
 
     def solve(self, rhs: PETSc.Vec, out: PETSc.Vec) -> bool:

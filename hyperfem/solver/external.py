@@ -74,7 +74,10 @@ class ExternalEnergy(Protocol):
         """Move to time (load factor) ``t`` (an obstacle's prescribed motion)."""
 
     def energy(self, u: np.ndarray) -> float:
-        """This rank's part of the energy (``inf`` where the state is inadmissible)."""
+        """This rank's part of the energy (``inf`` where the state is inadmissible).
+
+        A function of ``u`` alone between :meth:`update` calls: the line search reuses the energy of a
+        state it evaluated before (:class:`~hyperfem.solver.objective.EnergyObjective`)."""
 
     def gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(dofs, values)``, both of shape ``(m, k)``: the gradient entries of ``m`` groups of ``k`` dofs."""

@@ -13,8 +13,8 @@ So SNES lags the preconditioner (``snes_lag_preconditioner``): it is built
 at the first Newton iteration of every solve and then at the multiples of
 the lag. :class:`PreconditionerLag` adds one rule that SNES has not: a
 lagged preconditioner whose last Krylov solve took more than
-:data:`REBUILD_GROWTH` times the iterations of the first solve with it (plus
-:data:`REBUILD_SLACK`) is rebuilt at the next tangent, for the tangent has
+:data:`REBUILD_GROWTH` times the iterations of the first converged solve
+with it plus :data:`REBUILD_SLACK` is rebuilt at the next tangent, for the tangent has
 moved away from the one it was built on (a contact pair that entered, a
 material that stiffened). A solve that failed is handled where it fails
 (``NewtonSolver._recover_direction`` rebuilds and solves again), and
@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import warnings
 from typing import Any
 
 import numpy as np
@@ -104,7 +105,8 @@ class PreconditionerLag:
 
     Args:
         snes: The Newton solver's SNES; its lag is set before each tangent.
-        lag: The configured ``snes_lag_preconditioner`` (1: every tangent, -1: once, ``k`` > 1: every ``k``-th).
+        lag: The configured ``snes_lag_preconditioner`` (1: every tangent, ``k`` > 1: every ``k``-th of a solve,
+            -1: built once, never again, also not in later solves).
 
     Attributes:
         early_rebuilds: Preconditioners rebuilt before the lag asked for it, since construction.
@@ -117,6 +119,20 @@ class PreconditionerLag:
         self._first: int | None = None  # Krylov iterations of the first solve with the current preconditioner
         self._fresh = True  # the current preconditioner has not solved yet
         self._reused = False  # SNES's decision at its last tangent
+        self._built = False  # a preconditioner was built (lag -1: SNES never builds another)
+        self._rtol: float | None = None  # the KSP's tolerance at the start of the solve (the configured one)
+        self.adaptive = self.lagged
+        """Whether the early rebuild is on (it needs ``SNESSetLagPreconditioner``, looked up here)."""
+        if self.adaptive:
+            try:
+                _petsc_functions()
+            except (OSError, AttributeError) as exc:
+                warnings.warn(
+                    f"PreconditionerLag: SNESSetLagPreconditioner not found ({exc}); the lag stays fixed",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+                self.adaptive = False
 
     @property
     def lagged(self) -> bool:
@@ -131,32 +147,55 @@ class PreconditionerLag:
     def __call__(self, iteration: int, reason: int) -> None:
         """Decide whether the tangent of Newton iteration ``iteration`` rebuilds the preconditioner.
 
+        Called before the final-step forcing changes the next solve's tolerance. The reference count is
+        taken from the first converged solve with a preconditioner; a solve that the forcing tightened
+        (its tolerance below the one the solve started with) is not compared with it.
+
         Args:
             iteration: The Newton iteration whose residual was just tested (0: the start of a solve).
             reason: The convergence test's verdict; a nonzero one ends the solve (nothing to decide).
         """
         if not self.lagged:
             return
-        if reason != 0:  # the solve ends: the configured lag back (an early rebuild set it to 1)
-            set_snes_lag(self._snes, self.lag)
+        if reason != 0:  # the solve ends
+            self.restore()
             return
-        count = int(self._snes.getKSP().getIterationNumber())
-        if iteration > 0 and self._fresh:
+        ksp = self._snes.getKSP()
+        count = int(ksp.getIterationNumber())
+        rtol = float(ksp.getTolerances()[0])
+        if iteration == 0:
+            self._rtol = rtol
+        converged = int(ksp.getConvergedReason()) > 0  # type: ignore[call-overload]  # petsc4py: an int
+        if iteration > 0 and self._fresh and converged:
             self._first, self._fresh = count, False
+        scheduled = (not self._built) if self.lag == -1 else preconditioner_rebuilt(iteration, self.lag)
         grown = (
-            iteration > 0
+            self.adaptive
+            and iteration > 0
+            and not scheduled
             and self._first is not None
+            and (self._rtol is None or rtol >= self._rtol)
             and count > REBUILD_GROWTH * self._first + REBUILD_SLACK
-            and not preconditioner_rebuilt(iteration, self.lag)
         )
-        set_snes_lag(self._snes, 1 if grown else self.lag)
-        rebuild = grown or preconditioner_rebuilt(iteration, self.lag)
+        if self.adaptive:
+            set_snes_lag(self._snes, 1 if grown else self.lag)
         if grown:
             self.early_rebuilds += 1
-        if rebuild:
+        if grown or scheduled:
             self.rebuilt()
-        self._reused = not rebuild
+        self._reused = not (grown or scheduled)
 
     def rebuilt(self) -> None:
         """The preconditioner is (being) built on the current tangent: its next solve sets the reference count."""
-        self._fresh, self._first, self._reused = True, None, False
+        self._fresh, self._first, self._reused, self._built = True, None, False, True
+
+    def rebuild_now(self) -> None:
+        """Make SNES rebuild the preconditioner at the tangent being assembled (SNES reads its lag after it)."""
+        if self.lagged and self.adaptive:
+            set_snes_lag(self._snes, 1)
+            self.rebuilt()
+
+    def restore(self) -> None:
+        """Give SNES its configured lag back (an early rebuild sets it to 1 for one tangent)."""
+        if self.adaptive:
+            set_snes_lag(self._snes, self.lag)

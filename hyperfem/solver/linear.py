@@ -117,7 +117,7 @@ one Newton solve, this 2-core machine, best of 2, interleaved; issue 20):
 * ``snes_lag_preconditioner 10``: the hierarchy is built at the first
   Newton iteration of a solve and reused (the Galerkin products are the
   dominant set-up cost), rebuilt early only where a Krylov solve takes more
-  than twice the iterations of the first one with it
+  than twice the iterations of the first one with it, plus 5
   (:class:`~hyperfem.solver.lag.PreconditionerLag`). The first tangent's
   hierarchy preconditions the later ones nearly as well: on the bend at
   28.6k unknowns 11, 14, 15, 18, 16 CG iterations against 11, 13, 14, 17, 14

@@ -484,6 +484,10 @@ class NewtonSolver:
             replaced.clear()
             if copy_always or not me()._in_snes or not me()._lag.reused:
                 preconditioner(A)
+            if preconditioner.matrix.handle != P.handle and me()._in_snes:
+                # A lagged preconditioner would stay on the old pattern (PCSetUp returns at once when the
+                # KSP reuses it): SNES rebuilds it at this tangent; the next convergence test restores the lag.
+                me()._lag.rebuild_now()
             if preconditioner.matrix.handle != P.handle:
                 # A new preconditioning matrix (the tangent's pattern grew, ShiftedPreconditioner): SNES
                 # hands it to its KSP after this call, which then sets the preconditioner up anew. The old
@@ -692,9 +696,11 @@ class NewtonSolver:
             return _DOMAIN
         if self._linear_failure:
             return _LINEAR
+        if it == 0 and self._objective is not None:
+            self._objective.reset()  # a solve started through the public SNES too
         reason = self._roundoff(snes, it, norms)
+        self._lag(it, reason)  # before the forcing sets the next solve's tolerance (the lag reads the last one's)
         self._forcing(snes, it, float(norms[2]), reason)
-        self._lag(it, reason)
         return reason
 
     @property
@@ -928,6 +934,9 @@ class NewtonSolver:
             ) from exc
         finally:
             self._in_snes = False
+            self._lag.restore()  # also after a solve ended in a callback (the convergence test did not run)
+            if self._objective is not None:  # its caches belong to this solve (the public SNES may solve again)
+                self._objective.reset()
 
     def _failure(self, reason: int, message: str, ksp_reason: int) -> tuple[int, str]:
         """The reason and message of a refused step or a failed linear solve."""

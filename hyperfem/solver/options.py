@@ -97,7 +97,7 @@ def merge_options(
         if user[key] in ("lu", "cholesky"):  # PETSc's own factorisations are serial only
             linear[f"{scope}pc_factor_mat_solver_type"] = "mumps"
             if not scope:
-                # The AMG paths lag their hierarchy (snes_lag_preconditioner 2-5). A lagged factorisation
+                # The AMG paths lag their hierarchy (snes_lag_preconditioner 3-10). A lagged factorisation
                 # is a chord method: measured (benchmarks/linear_degree.py, bend, full load), P2 at
                 # 30.8k unknowns took 16 Newton iterations with LU lagged by 5 and 4 without. The
                 # user's own lag, if any, is kept below.

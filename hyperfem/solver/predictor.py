@@ -194,6 +194,7 @@ class BoundaryPredictor:
                 # surgery demo's drag (--n 16) took 16 steps and 69 s, reset 12 steps and 65 s, the steps
                 # an unlagged preconditioner takes.
                 pc.reset()
+                pc.setReusePreconditioner(False)  # a reset keeps the flag: the next lift would reuse this one
             self._lag.rebuilt()
             ksp.setOperators(A, A if P is None else P)
             ksp.solve(b, du)
