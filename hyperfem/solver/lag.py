@@ -191,7 +191,7 @@ class PreconditionerLag:
 
     def rebuild_now(self) -> None:
         """Make SNES rebuild the preconditioner at the tangent being assembled (SNES reads its lag after it)."""
-        if self.lagged and self.adaptive:
+        if self.adaptive:  # lagged, and SNES's lag can be set
             set_snes_lag(self._snes, 1)
             self.rebuilt()
 

@@ -484,11 +484,11 @@ class NewtonSolver:
             replaced.clear()
             if copy_always or not me()._in_snes or not me()._lag.reused:
                 preconditioner(A)
-            if preconditioner.matrix.handle != P.handle and me()._in_snes:
-                # A lagged preconditioner would stay on the old pattern (PCSetUp returns at once when the
-                # KSP reuses it): SNES rebuilds it at this tangent; the next convergence test restores the lag.
-                me()._lag.rebuild_now()
             if preconditioner.matrix.handle != P.handle:
+                if me()._in_snes:
+                    # A lagged preconditioner would stay on the old pattern (PCSetUp returns at once when the
+                    # KSP reuses it): SNES rebuilds it at this tangent; the next convergence test restores the lag.
+                    me()._lag.rebuild_now()
                 # A new preconditioning matrix (the tangent's pattern grew, ShiftedPreconditioner): SNES
                 # hands it to its KSP after this call, which then sets the preconditioner up anew. The old
                 # one is kept alive until the next call (SNESComputeJacobian still holds it).
